@@ -1,0 +1,34 @@
+# The two commands a user needs on a fresh clone: `make demo` and `make test`.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: install demo test test-slow lint bench clean
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/orbitsim demo -o demo-report
+
+test: $(STAMP)
+	$(BIN)/ruff check orbitsim tests benchmarks
+	$(BIN)/python -m pytest -q
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow
+
+lint: $(STAMP)
+	$(BIN)/ruff check orbitsim tests benchmarks
+
+bench: $(STAMP)
+	$(BIN)/orbitsim bench configs/bench.yaml -o benchmarks/results
+
+clean:
+	rm -rf $(VENV) demo-report .pytest_cache

@@ -1,0 +1,231 @@
+"""``orbitsim compare`` without the CLI: run a scenario in both codes and judge the matched pairs.
+
+Every run starts from the scenario's initial state with its G, softening and dt, and is sampled at
+the scenario's sample steps (``Scenario.sample_steps()``). orbitsim runs record positions at every
+sample; REBOUND's fixed-step runs are stepped whole steps to the same indices; the IAS15 reference
+lands exactly on the same times. See ``docs/compare.md`` for the metrics and tolerances.
+
+The scenario is used through these attributes only: ``name``, ``G``, ``softening``, ``dt``,
+``integrator``, ``integrator_settings``, ``masses``, ``positions``, ``velocities``, ``names`` and
+``sample_steps()``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from orbitsim.analysis.metrics import PairVerdict, RunMetrics, pair_verdict, run_metrics
+from orbitsim.analysis.record import RunRecord, record_from_result
+from orbitsim.reference.bridge import ReboundScheme, parse_rebound_scheme
+from orbitsim.reference.pairs import (
+    TWIN_PERTURBATION,
+    MatchedPair,
+    available_pairs,
+    partner_of,
+)
+
+#: WHFast joins the default REBOUND set when the other bodies weigh at most this fraction of
+#: body 0: its splitting error scales with that mass ratio, and below ~1e-2 it is the scheme a
+#: REBOUND user would pick for such a system.
+DOMINANT_MASS_RATIO = 1e-2
+
+#: orbitsim integrators added to a comparison by default, besides the scenario's own: one
+#: second- and one fourth-order member of the family REBOUND shares.
+DEFAULT_MATCHED = ("leapfrog", "leapfrog4")
+
+Progress = Callable[[str], None]
+
+
+def has_dominant_central_mass(masses: np.ndarray) -> bool:
+    """True when body 0 outweighs all others together by 1 / DOMINANT_MASS_RATIO or more."""
+    m = np.asarray(masses, dtype=np.float64)
+    return m.size > 1 and m[0] > 0.0 and float(m[1:].sum()) <= DOMINANT_MASS_RATIO * float(m[0])
+
+
+def _registered(name: str) -> bool:
+    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec
+
+    try:
+        get_spec(name)
+    except UnknownIntegratorError:
+        return False
+    return True
+
+
+def default_integrators(scenario: Any) -> list[str]:
+    """The scenario's integrator, :data:`DEFAULT_MATCHED`, and ``wisdom_holman`` (if registered)
+    when body 0 dominates the mass."""
+    from orbitsim.integrators.registry import canonical_name
+
+    names = [canonical_name(scenario.integrator), *DEFAULT_MATCHED]
+    if has_dominant_central_mass(scenario.masses) and _registered("wisdom_holman"):
+        names.append("wisdom_holman")
+    return list(dict.fromkeys(names))
+
+
+def default_rebound(integrators: Sequence[str], masses: np.ndarray) -> list[ReboundScheme]:
+    """The REBOUND partners of ``integrators``, plus WHFast when body 0 dominates the mass."""
+    schemes = [s for s in (partner_of(name) for name in integrators) if s is not None]
+    if has_dominant_central_mass(masses):
+        schemes.append(ReboundScheme("whfast"))
+    return list(dict.fromkeys(schemes))
+
+
+@dataclass
+class CompareResult:
+    """Everything a comparison produced; reports and the exit code are derived from it."""
+
+    scenario: Any
+    runs: list[RunRecord]
+    reference: RunRecord
+    twins: dict[str, RunRecord]
+    metrics: dict[str, RunMetrics]
+    verdicts: list[PairVerdict]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        """True when every matched pair agrees within its tolerance."""
+        return all(v.agree for v in self.verdicts)
+
+    @property
+    def failed_pairs(self) -> list[str]:
+        """Names of the pairs that disagree."""
+        return [v.name for v in self.verdicts if not v.agree]
+
+    def record(self, label: str) -> RunRecord:
+        """The run with ``label`` (``engine/key``)."""
+        for rec in [*self.runs, self.reference]:
+            if rec.label == label:
+                return rec
+        raise KeyError(label)
+
+
+def settings_for(scenario: Any, integrator: str) -> dict[str, Any]:
+    """The scenario's integrator settings if ``integrator`` is its integrator, else none."""
+    from orbitsim.integrators.registry import canonical_name
+
+    if canonical_name(scenario.integrator) == canonical_name(integrator):
+        return dict(getattr(scenario, "integrator_settings", None) or {})
+    return {}
+
+
+def run_orbitsim(scenario: Any, integrator: str, sample_steps: np.ndarray, *, dt: float | None = None,
+                 threads: int | None = None) -> RunRecord:
+    """One orbitsim run at ``sample_steps``, timed after a one-step warm-up.
+
+    The warm-up loads (or compiles) the integrator's kernels so that the recorded wall time is
+    the run's own, comparable with REBOUND's, and not Numba's start-up.
+    """
+    from orbitsim.integrators.registry import get_spec
+    from orbitsim.simulation import simulate
+
+    spec = get_spec(integrator)
+    step_dt = float(scenario.dt if dt is None else dt)
+    common = dict(integrator=spec.name, dt=step_dt, G=scenario.G, softening=scenario.softening,
+                  threads=threads, settings=settings_for(scenario, spec.name))
+    simulate(scenario.masses, scenario.positions, scenario.velocities, steps=1, record_positions=False,
+             **common)
+    result = simulate(scenario.masses, scenario.positions, scenario.velocities,
+                      steps=int(sample_steps[-1]), sample_steps=sample_steps, record_positions=True,
+                      **common)
+    return record_from_result(result, key=spec.name, display=f"orbitsim {spec.name}", order=spec.order)
+
+
+def _pairs_for(integrators: Sequence[str], schemes: Sequence[ReboundScheme],
+               extra: Sequence[MatchedPair]) -> list[MatchedPair]:
+    builtin = [p for p in available_pairs() if p.orbitsim in integrators and p.rebound in schemes]
+    return list(dict.fromkeys([*builtin, *extra]))
+
+
+def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[ReboundScheme | str],
+                extra_pairs: Sequence[MatchedPair] = (), threads: int | None = None,
+                progress: Progress | None = None) -> CompareResult:
+    """Run ``scenario`` under each integrator of both codes and the IAS15 reference.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A loaded scenario (dt, steps and sampling already final).
+    integrators : sequence of str
+        orbitsim integrator names or aliases.
+    rebound : sequence of ReboundScheme or str
+        REBOUND schemes (``ias15`` is always the reference and is not run twice).
+    extra_pairs : sequence of MatchedPair
+        User-specified pairs (``--pair``); their two sides are added to the runs.
+    threads : int, optional
+        Numba threads for orbitsim.
+    progress : callable, optional
+        Receives one line per finished run.
+
+    Returns
+    -------
+    CompareResult
+    """
+    from orbitsim.integrators.registry import canonical_name
+    from orbitsim.reference.sampling import run_reference
+
+    say = progress or (lambda _msg: None)
+    plan = np.asarray(scenario.sample_steps(), dtype=np.int64)
+    names = list(dict.fromkeys([canonical_name(n) for n in integrators] + [p.orbitsim for p in extra_pairs]))
+    schemes = [parse_rebound_scheme(s) if isinstance(s, str) else s for s in rebound]
+    schemes = list(dict.fromkeys([s for s in schemes if s.fixed_step] + [p.rebound for p in extra_pairs]))
+    pairs = _pairs_for(names, schemes, extra_pairs)
+    runs = [_announce(run_orbitsim(scenario, name, plan, threads=threads), say) for name in names]
+    runs += [_announce(_run_rebound(scenario, s, plan, names), say) for s in schemes]
+    reference = _announce(_reference(scenario, plan, run_reference), say)
+    twins = {s.key: _run_rebound(scenario, s, plan, names, twin=True)
+             for s in dict.fromkeys(p.rebound for p in pairs)}
+    by_label = {r.label: r for r in runs}
+    verdicts = [pair_verdict(p, by_label[f"orbitsim/{p.orbitsim}"], by_label[f"rebound/{p.rebound.key}"],
+                             twins.get(p.rebound.key)) for p in pairs]
+    metrics = {r.label: run_metrics(r, reference) for r in [*runs, reference]}
+    return CompareResult(scenario, runs, reference, twins, metrics, verdicts, _skipped_notes(names, schemes))
+
+
+def _reference(scenario: Any, plan: np.ndarray, run_reference: Callable[..., RunRecord]) -> RunRecord:
+    return run_reference(scenario.masses, scenario.positions, scenario.velocities, G=scenario.G,
+                         softening=scenario.softening, dt=scenario.dt, sample_steps=plan)
+
+
+def _run_rebound(scenario: Any, scheme: ReboundScheme, plan: np.ndarray, integrators: Sequence[str],
+                 *, twin: bool = False) -> RunRecord:
+    """A REBOUND run (or its twin from positions scaled by 1 + TWIN_PERTURBATION)."""
+    from orbitsim.reference.sampling import run_rebound
+
+    # WHFast gets the settings of the orbitsim scheme it is paired with, so both use the same
+    # coordinates and corrector.
+    settings = settings_for(scenario, "wisdom_holman") if scheme.name == "whfast" and _registered(
+        "wisdom_holman") else {}
+    positions = np.asarray(scenario.positions, dtype=np.float64)
+    if twin:
+        positions = positions * (1.0 + TWIN_PERTURBATION)
+    record = run_rebound(scenario.masses, positions, scenario.velocities, G=scenario.G,
+                         softening=scenario.softening, dt=scenario.dt, scheme=scheme, sample_steps=plan,
+                         settings=settings)
+    if twin:
+        record.engine = "rebound_twin"
+        record.display += " twin"
+    return record
+
+
+def _announce(record: RunRecord, say: Progress) -> RunRecord:
+    from orbitsim.analysis.metrics import max_abs_energy_error
+
+    status = "" if record.status == "complete" else f" [{record.status}: {record.message}]"
+    say(f"  {record.display:<40} {record.steps_done:>9} steps  {record.wall_time_s:8.3f} s  "
+        f"max |dE/E| {max_abs_energy_error(record):.2e}{status}")
+    return record
+
+
+def _skipped_notes(names: Sequence[str], schemes: Sequence[ReboundScheme]) -> list[str]:
+    """Why a pair the user might expect was not judged (e.g. wisdom_holman not registered yet)."""
+    notes = []
+    if any(s.name == "whfast" for s in schemes) and not _registered("wisdom_holman"):
+        notes.append("pair wisdom_holman <-> REBOUND whfast skipped: orbitsim has no wisdom_holman "
+                     "integrator in this build")
+    return notes

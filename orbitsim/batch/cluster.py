@@ -1,0 +1,125 @@
+"""Where a sweep runs: an embedded ``dask.distributed.LocalCluster`` or an existing Dask cluster.
+
+The local cluster uses worker *processes* with one Dask thread each: a run holds the GIL only
+between jitted calls, but several runs in one process would share one Numba thread pool, and
+processes also isolate a crashing run. Each worker gets ``NUMBA_NUM_THREADS`` through the nanny's
+``env`` (applied in the worker process before it imports anything), chosen so that
+workers x Numba threads <= cores: oversubscribing the cores would only slow every run down.
+
+For an existing cluster (``--scheduler tcp://HOST:PORT``) the workers' own settings apply; see
+docs/batch.md for how to start ``dask worker`` with a matching ``NUMBA_NUM_THREADS``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["CONNECT_TIMEOUT_S", "WORKER_WAIT_S", "ClusterPlan", "available_cores", "open_client", "plan_local"]
+
+#: Seconds to reach an existing scheduler before giving up with a clear error.
+CONNECT_TIMEOUT_S = 20.0
+#: Seconds to wait for the first worker: without one, the sweep would wait forever.
+WORKER_WAIT_S = 120.0
+
+
+class ClusterError(RuntimeError):
+    """The Dask cluster could not be started or reached."""
+
+
+@dataclass(frozen=True)
+class ClusterPlan:
+    """Shape of an embedded local cluster: ``workers`` processes with ``threads`` Numba threads each."""
+
+    workers: int
+    threads: int
+
+
+def available_cores() -> int:
+    """Cores this process may use (the affinity mask where the OS has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # macOS and Windows have no affinity mask
+        return max(1, os.cpu_count() or 1)
+
+
+def plan_local(
+    workers: int | None = None, threads: int | None = None, n_runs: int | None = None, cores: int | None = None
+) -> ClusterPlan:
+    """Size a local cluster: by default one worker per core, capped by the number of runs.
+
+    Numba threads per worker default to ``cores // workers`` (at least 1), so that
+    workers x threads <= cores; a worker per core with one thread each is what a sweep of many
+    small runs wants, while a sweep of a few large runs may ask for fewer workers and more threads.
+    """
+    cores = cores or available_cores()
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {workers}")
+    if threads is not None and threads < 1:
+        raise ValueError(f"--threads must be >= 1, got {threads}")
+    n = workers or cores
+    if workers is None and n_runs is not None:
+        n = max(1, min(n, n_runs))  # no point starting a worker that would sit idle
+    return ClusterPlan(workers=n, threads=threads or max(1, cores // n))
+
+
+def _local_cluster(plan: ClusterPlan) -> Any:
+    from distributed import LocalCluster
+
+    return LocalCluster(
+        n_workers=plan.workers,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        # No dashboard is wanted, but the scheduler serves HTTP anyway (health checks): a random
+        # port keeps it from fighting over 8787 with other clusters on the machine.
+        dashboard_address=":0",
+        silence_logs=logging.ERROR,
+        env={"NUMBA_NUM_THREADS": str(plan.threads)},
+    )
+
+
+@contextlib.contextmanager
+def open_client(scheduler: str | None, plan: ClusterPlan | None = None) -> Iterator[Any]:
+    """A ``distributed.Client`` for the sweep, closed (with any cluster it started) on exit.
+
+    Parameters
+    ----------
+    scheduler : str or None
+        Address of an existing scheduler (``tcp://HOST:PORT``); None starts a local cluster.
+    plan : ClusterPlan, optional
+        Shape of the local cluster (ignored with ``scheduler``); default :func:`plan_local`.
+
+    Raises
+    ------
+    ClusterError
+        If the scheduler cannot be reached or no worker joins within :data:`WORKER_WAIT_S`.
+    """
+    from distributed import Client
+
+    cluster = None
+    try:
+        if scheduler is None:
+            cluster = _local_cluster(plan or plan_local())
+            client = Client(cluster)
+        else:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+    except (OSError, TimeoutError) as err:
+        if cluster is not None:
+            cluster.close()
+        target = scheduler or "a local Dask cluster"
+        raise ClusterError(f"cannot reach {target}: {' '.join(str(err).split())}") from None
+    try:
+        try:
+            client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+        except TimeoutError:
+            raise ClusterError(f"no Dask worker joined {scheduler} within {WORKER_WAIT_S:.0f} s") from None
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

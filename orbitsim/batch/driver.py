@@ -1,0 +1,272 @@
+"""Run a sweep on Dask: skip what is done, submit the rest, collect results, write the summary.
+
+Reliability comes from Dask and from content addressing, not from bookkeeping of our own:
+
+* Each run writes ``OUTDIR/runs/<run-id>.h5`` atomically (``.tmp`` then rename), and the run id
+  hashes the fully resolved scenario. A trace that exists, says ``status = complete`` and carries
+  the case's ``scenario_sha256`` *is* that case's result, so a rerun skips it (resume).
+* A worker that dies mid-run loses only its running tasks; the scheduler resubmits them to other
+  workers (``distributed.scheduler.allowed-failures`` times) and the stale ``.tmp`` is overwritten.
+* A run that fails is a ``failed`` row (see :mod:`orbitsim.batch.task`); the sweep goes on.
+* Rows are placed by case index, never by completion order, and every number in a row is read
+  from the trace, so the summary does not depend on how many workers ran it or in which order.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from orbitsim.batch.summary import write_csv, write_h5
+from orbitsim.batch.sweep import Case, Sweep
+from orbitsim.batch.task import failed_result, run_case, trace_result, warm_up
+
+__all__ = ["TASK_RETRIES", "SweepOutcome", "completed_result", "run_sweep", "trace_path_for"]
+
+#: Extra attempts Dask makes when the task function itself raises (e.g. a worker that cannot
+#: import orbitsim). Run failures never raise (they are returned as rows), and a *killed* worker's
+#: tasks are rescheduled by the scheduler independently of this number.
+TASK_RETRIES = 1
+
+#: Called after each finished run with (runs finished so far, runs submitted, the new row).
+Progress = Callable[[int, int, dict[str, Any]], None]
+
+
+@dataclass
+class SweepOutcome:
+    """What a sweep produced: the rows in case order and where the summaries are."""
+
+    sweep: Sweep
+    outdir: Path
+    rows: list[dict[str, Any]]
+    resumed: int = 0
+    interrupted: bool = False
+    files: list[Path] = field(default_factory=list)
+
+    @property
+    def counts(self) -> Counter[str]:
+        """Number of rows per status."""
+        return Counter(row["status"] for row in self.rows)
+
+
+def trace_path_for(outdir: Path, case: Case) -> Path:
+    """``OUTDIR/runs/<run-id>.h5``."""
+    return outdir / "runs" / f"{case.run_id}.h5"
+
+
+def completed_result(path: Path, case: Case) -> dict[str, Any] | None:
+    """The result of ``case`` read from its trace, if the trace is complete and matches its scenario."""
+    from orbitsim.io.trace import TraceError
+
+    if not path.is_file():
+        return None
+    try:
+        return trace_result(path, require_sha256=case.sha256)
+    except TraceError:
+        return None  # unreadable or foreign: run it again, replacing the file
+
+
+def _previous_workers(outdir: Path) -> dict[str, str]:
+    """run id -> worker from an earlier summary, so resumed rows still say who ran them."""
+    try:
+        with open(outdir / "summary.csv", newline="", encoding="utf-8") as fh:
+            return {row["run_id"]: row.get("worker", "") for row in csv.DictReader(fh)}
+    except (OSError, KeyError, csv.Error):
+        return {}
+
+
+def _row(case: Case, outdir: Path, result: dict[str, Any], resumed: bool) -> dict[str, Any]:
+    row = {"case": case.index, "run_id": case.run_id, "params": case.params}
+    row.update(result)
+    row["resumed"] = resumed
+    row["trace"] = trace_path_for(outdir, case).relative_to(outdir).as_posix()
+    if row["status"] == "failed" and not (outdir / row["trace"]).is_file():
+        row["trace"] = ""
+    return row
+
+
+def run_sweep(
+    sweep: Sweep,
+    outdir: str | Path,
+    *,
+    client: Any = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    threads: int | None = None,
+    resume: bool = True,
+    progress: Progress | None = None,
+    on_start: Callable[[int, int, str], None] | None = None,
+) -> SweepOutcome:
+    """Run every case of ``sweep`` not already done and write ``summary.csv`` and ``summary.h5``.
+
+    Parameters
+    ----------
+    sweep : Sweep
+        A validated sweep (:func:`orbitsim.batch.sweep.load_sweep`).
+    outdir : path
+        Output directory; created if needed. Must be visible to the workers at the same path.
+    client : distributed.Client, optional
+        Use this client (and its cluster) as is; otherwise one is opened from ``scheduler``.
+    scheduler : str, optional
+        Address of an existing Dask scheduler; default: an embedded ``LocalCluster``.
+    workers, threads : int, optional
+        Local cluster size and Numba threads per worker (:func:`orbitsim.batch.cluster.plan_local`).
+        With an existing cluster ``threads`` is passed to each run, ``workers`` is ignored.
+    resume : bool
+        Reuse every trace that is complete and matches its case's scenario hash (default).
+    progress : callable, optional
+        Called after each finished run.
+    on_start : callable, optional
+        Called once with (runs to submit, runs reused, description of the cluster).
+
+    Returns
+    -------
+    SweepOutcome
+        On Ctrl-C (or a lost cluster) the summary of what finished is written, unfinished runs
+        being ``not run``, and the exception is re-raised.
+
+    Raises
+    ------
+    orbitsim.batch.cluster.ClusterError
+        When the cluster cannot be started or reached, or a worker lacks this orbitsim; nothing
+        has been written then.
+    """
+    from orbitsim.batch.cluster import ClusterError
+
+    outdir = Path(outdir).resolve()
+    rows: dict[int, dict[str, Any]] = {}
+    pending: list[Case] = []
+    earlier = _previous_workers(outdir) if resume else {}
+    for case in sweep.cases:
+        done = completed_result(trace_path_for(outdir, case), case) if resume else None
+        if done is None:
+            pending.append(case)
+        else:
+            rows[case.index] = _row(case, outdir, {**done, "worker": earlier.get(case.run_id, "")}, True)
+    outcome = SweepOutcome(sweep, outdir, [], resumed=len(rows))
+    try:
+        if pending:
+            _run_pending(pending, outdir, rows, client, scheduler, workers, threads, progress, on_start)
+        elif on_start is not None:
+            on_start(0, len(rows), "nothing to run")
+    except ClusterError:
+        raise  # raised before anything was submitted: there is nothing to summarise
+    except BaseException as exc:  # Ctrl-C, or the cluster went away: keep a summary of what finished
+        outcome.interrupted = isinstance(exc, KeyboardInterrupt)
+        _finish(outcome, rows)
+        raise
+    _finish(outcome, rows)
+    return outcome
+
+
+def _finish(outcome: SweepOutcome, rows: dict[int, dict[str, Any]]) -> None:
+    outdir = outcome.outdir
+    outcome.rows = [rows.get(c.index) or _row(c, outdir, _not_run(), False) for c in outcome.sweep.cases]
+    outdir.mkdir(parents=True, exist_ok=True)
+    outcome.files = _write_summaries(outcome)
+
+
+def _not_run() -> dict[str, Any]:
+    result = failed_result("the sweep stopped before this run finished")
+    result["status"] = "not run"
+    return result
+
+
+def _run_pending(
+    pending: list[Case],
+    outdir: Path,
+    rows: dict[int, dict[str, Any]],
+    client: Any,
+    scheduler: str | None,
+    workers: int | None,
+    threads: int | None,
+    progress: Progress | None,
+    on_start: Callable[[int, int, str], None] | None,
+) -> None:
+    from orbitsim.batch.cluster import open_client, plan_local
+
+    if client is not None:
+        _collect(client, pending, outdir, rows, threads, progress, on_start, "the given Dask client")
+        return
+    if scheduler is None:
+        plan = plan_local(workers, threads, n_runs=len(pending))
+        label = f"local Dask cluster: {plan.workers} worker(s) x {plan.threads} Numba thread(s)"
+        task_threads = None  # the workers' NUMBA_NUM_THREADS already says it
+    else:
+        plan, label, task_threads = None, f"Dask scheduler {scheduler}", threads
+    with open_client(scheduler, plan) as opened:
+        _collect(opened, pending, outdir, rows, task_threads, progress, on_start, label)
+
+
+def _collect(
+    client: Any,
+    pending: list[Case],
+    outdir: Path,
+    rows: dict[int, dict[str, Any]],
+    threads: int | None,
+    progress: Progress | None,
+    on_start: Callable[[int, int, str], None] | None,
+    label: str,
+) -> None:
+    """Submit ``pending`` in case order and file each result under its case as it arrives."""
+    from distributed import as_completed
+
+    _check_workers(client)
+    (outdir / "runs").mkdir(parents=True, exist_ok=True)
+    if on_start is not None:
+        on_start(len(pending), len(rows), label)
+    futures = {}
+    for case in pending:
+        future = client.submit(
+            run_case, case.scenario, str(trace_path_for(outdir, case)), threads,
+            key=f"orbitsim-run-{case.run_id}", pure=False, retries=TASK_RETRIES,
+        )
+        futures[future] = case
+    finished = 0
+    try:
+        for future in as_completed(futures):
+            case = futures[future]
+            try:
+                result = future.result()
+            except Exception as err:  # e.g. KilledWorker after too many worker deaths: a failed row
+                result = failed_result(err)
+            rows[case.index] = _row(case, outdir, result, False)
+            finished += 1
+            if progress is not None:
+                progress(finished, len(pending), rows[case.index])
+    finally:
+        if finished < len(futures):  # Ctrl-C or an error in here: stop what is still queued
+            client.cancel(list(futures))
+
+
+def _check_workers(client: Any) -> None:
+    """Warm every worker up and refuse workers whose orbitsim is missing or of another version.
+
+    A mismatch would make some runs differ from others, or fail every run on one worker.
+    """
+    from orbitsim._version import __version__
+    from orbitsim.batch.cluster import ClusterError
+
+    answers = client.run(warm_up, on_error="return")
+    for worker, answer in sorted(answers.items()):
+        if isinstance(answer, BaseException):
+            raise ClusterError(f"worker {worker} cannot import orbitsim: {type(answer).__name__}: {answer}")
+        if answer != __version__:
+            raise ClusterError(f"worker {worker} runs orbitsim {answer}, this is {__version__}; "
+                               "install the same version on every worker")
+
+
+def _write_summaries(outcome: SweepOutcome) -> list[Path]:
+    from orbitsim._version import __version__
+
+    attrs = {"sweep_name": outcome.sweep.name, "sweep_file": outcome.sweep.file,
+             "sweep_yaml": outcome.sweep.text, "orbitsim_version": __version__,
+             "runs": len(outcome.rows), "interrupted": outcome.interrupted}
+    params = outcome.sweep.params
+    return [write_csv(outcome.outdir / "summary.csv", outcome.rows, params),
+            write_h5(outcome.outdir / "summary.h5", outcome.rows, params, attrs)]
+

@@ -1,0 +1,188 @@
+"""The sweep summary: one row per run, written as ``summary.csv``, ``summary.h5`` and a terminal table.
+
+Columns, in order (``params`` are the sweep's dotted key paths, one column each):
+
+========================  =====  ===========================================================
+``case``                  int    position of the case in the sweep (0-based)
+``run_id``                str    16 hex digits of the SHA-256 of the fully resolved scenario
+*params*                  any    the value of each swept key path in this case
+``status``                str    ``complete``, ``diverged``, ``failed`` or ``not run``
+``steps_done``            int    steps integrated (0 when the run failed before stepping)
+``max_abs_energy_error``  float  max over samples of abs(E - E0) / abs(E0)
+``final_energy_error``    float  (E - E0) / abs(E0) at the last sample
+``wall_time_s``           float  wall-clock seconds of the run, as recorded in its trace
+``steps_per_second``      float  ``steps_done / wall_time_s``
+``worker``                str    address of the Dask worker that ran it
+``resumed``               bool   true when an existing complete trace was reused
+``trace``                 str    trace path relative to the output directory
+``error``                 str    why a run failed or diverged (empty otherwise)
+========================  =====  ===========================================================
+
+Missing numbers (a failed run has no energy error) are empty in the CSV and NaN in the HDF5 file.
+Both files are written next to their final name and renamed onto it, so a summary on disk is
+always whole.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+__all__ = ["RESULT_COLUMNS", "column_names", "format_table", "write_csv", "write_h5"]
+
+#: Result columns and their types; the parameter columns go between ``run_id`` and ``status``.
+RESULT_COLUMNS: tuple[tuple[str, type], ...] = (
+    ("status", str),
+    ("steps_done", int),
+    ("max_abs_energy_error", float),
+    ("final_energy_error", float),
+    ("wall_time_s", float),
+    ("steps_per_second", float),
+    ("worker", str),
+    ("resumed", bool),
+    ("trace", str),
+    ("error", str),
+)
+_LEAD_COLUMNS: tuple[tuple[str, type], ...] = (("case", int), ("run_id", str))
+_RESERVED = frozenset(name for name, _ in _LEAD_COLUMNS + RESULT_COLUMNS)
+
+
+def param_column(path: str) -> str:
+    """CSV header of a swept key path: the path itself, unless it clashes with a result column."""
+    return f"param:{path}" if path in _RESERVED else path
+
+
+def column_names(params: Sequence[str]) -> list[str]:
+    """Every CSV header, in order."""
+    return [n for n, _ in _LEAD_COLUMNS] + [param_column(p) for p in params] + [n for n, _ in RESULT_COLUMNS]
+
+
+def _cell(value: Any) -> str:
+    """A CSV cell: floats in shortest round-trip form (so equal bits give equal text), NaN empty."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, dict | list):
+        return json.dumps(value, sort_keys=True)
+    return str(value)
+
+
+def write_csv(path: str | os.PathLike, rows: Sequence[Mapping[str, Any]], params: Sequence[str]) -> Path:
+    """Write ``rows`` (dicts with ``case``, ``run_id``, ``params`` and the result columns) as CSV."""
+    final = Path(path)
+    tmp = final.with_name(final.name + ".tmp")
+    with open(tmp, "w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(column_names(params))
+        for row in rows:
+            values = [row["case"], row["run_id"]]
+            values += [row["params"].get(p) for p in params]
+            values += [row.get(name) for name, _ in RESULT_COLUMNS]
+            writer.writerow([_cell(v) for v in values])
+    os.replace(tmp, final)
+    return final
+
+
+def _param_array(values: list[Any]) -> Any:
+    """A numpy column for one parameter: bool, int64 or float64 when every value allows, else text."""
+    import numpy as np
+
+    present = [v for v in values if v is not None]
+    if present and all(isinstance(v, bool) for v in present) and len(present) == len(values):
+        return np.array(values, dtype=np.bool_)
+    numeric = all(isinstance(v, int | float) and not isinstance(v, bool) for v in present)
+    if numeric and present:
+        if all(isinstance(v, int) for v in present) and len(present) == len(values):
+            return np.array(values, dtype=np.int64)
+        return np.array([math.nan if v is None else float(v) for v in values], dtype=np.float64)
+    return np.array([_cell(v) for v in values], dtype=object)
+
+
+def _column_array(name: str, kind: type, rows: Sequence[Mapping[str, Any]]) -> Any:
+    import numpy as np
+
+    values = [row.get(name) for row in rows]
+    if kind is float:
+        return np.array([math.nan if v is None else float(v) for v in values], dtype=np.float64)
+    if kind is int:
+        return np.array([0 if v is None else int(v) for v in values], dtype=np.int64)
+    if kind is bool:
+        return np.array([bool(v) for v in values], dtype=np.bool_)
+    return np.array(["" if v is None else str(v) for v in values], dtype=object)
+
+
+def write_h5(
+    path: str | os.PathLike,
+    rows: Sequence[Mapping[str, Any]],
+    params: Sequence[str],
+    attrs: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write the summary as HDF5: one dataset per result column, parameters under ``params/``.
+
+    The root attribute ``columns`` lists the CSV headers in order and ``params`` the swept key
+    paths; text columns are variable-length UTF-8.
+    """
+    import h5py
+
+    final = Path(path)
+    tmp = final.with_name(final.name + ".tmp")
+    text = h5py.string_dtype("utf-8")
+    with h5py.File(tmp, "w") as f:
+        for key, value in (attrs or {}).items():
+            f.attrs[key] = value
+        f.attrs["columns"] = column_names(params)
+        f.attrs["params"] = list(params)
+        for name, kind in _LEAD_COLUMNS + RESULT_COLUMNS:
+            data = _column_array(name, kind, rows)
+            f.create_dataset(name, data=data, dtype=text if data.dtype == object else data.dtype)
+        group = f.create_group("params")
+        for p in params:
+            data = _param_array([row["params"].get(p) for row in rows])
+            group.create_dataset(p, data=data, dtype=text if data.dtype == object else data.dtype)
+    os.replace(tmp, final)
+    return final
+
+
+def _short(value: Any, width: int) -> str:
+    if isinstance(value, float):
+        text = "" if math.isnan(value) else f"{value:.3g}"
+    else:
+        text = _cell(value)
+    return text if len(text) <= width else text[: width - 1] + "…"
+
+
+#: Columns of the terminal table: (header, row key, width before truncation).
+_TABLE: tuple[tuple[str, str, int], ...] = (
+    ("status", "status", 9),
+    ("max|dE/E|", "max_abs_energy_error", 9),
+    ("final dE/E", "final_energy_error", 10),
+    ("steps/s", "steps_per_second", 9),
+    ("wall s", "wall_time_s", 8),
+    ("worker", "worker", 22),
+    ("error", "error", 40),
+)
+
+
+def format_table(rows: Sequence[Mapping[str, Any]], params: Sequence[str], max_rows: int = 40) -> str:
+    """A fixed-width text table of the summary (the first ``max_rows`` rows) for the terminal."""
+    headers = ["case", "run_id", *params, *(h for h, _, _ in _TABLE)]
+    lines = []
+    for row in rows[:max_rows]:
+        cells = [_short(row["case"], 6), _short(row["run_id"], 16)]
+        cells += [_short(row["params"].get(p), 20) for p in params]
+        cells += [_short(row.get(key), width) for _, key, width in _TABLE]
+        lines.append(cells)
+    widths = [max([len(h)] + [len(c[i]) for c in lines]) for i, h in enumerate(headers)]
+    out = ["  ".join(h.ljust(w) for h, w in zip(headers, widths, strict=True)).rstrip()]
+    out += ["  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True)).rstrip() for cells in lines]
+    if len(rows) > max_rows:
+        out.append(f"... {len(rows) - max_rows} more rows in summary.csv")
+    return "\n".join(out)

@@ -1,0 +1,145 @@
+"""``results.md``: the targets table, the stepping cases side by side, and the probes."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from typing import Any
+
+__all__ = ["markdown", "side_by_side", "targets_table"]
+
+#: REBOUND scheme an orbitsim integrator is compared with in the side-by-side table.
+PARTNER = {"leapfrog4": "leapfrog:4", "leapfrog6": "leapfrog:6", "leapfrog8": "leapfrog:8",
+           "wisdom_holman": "whfast"}
+
+
+def _time(seconds: float) -> str:
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6)):
+        if seconds >= scale:
+            return f"{seconds / scale:.3g} {unit}"
+    return f"{seconds * 1e9:.3g} ns"
+
+
+def _spread(summary: dict[str, Any], fmt: Any = _time) -> str:
+    return f"{fmt(summary['median'])} ({fmt(summary['min'])} - {fmt(summary['max'])})"
+
+
+def targets_table(doc: dict[str, Any]) -> str:
+    """The targets as a markdown table: required, measured, margin (>= 1 met)."""
+    lines = ["| target | required | measured | margin | met |", "|---|---|---|---|---|"]
+    for row in doc.get("targets", []):
+        margin = "-" if row["margin"] is None else f"{row['margin']:.2f}"
+        met = {True: "yes", False: "**no**", None: "-"}[row["met"]]
+        lines.append(f"| {row['target']} | {row['required']} | {row['measured_text']} | {margin} | {met} |")
+    return "\n".join(lines)
+
+
+def side_by_side(doc: dict[str, Any]) -> str:
+    """orbitsim's time per step against its REBOUND partner at the same N, measured interleaved.
+
+    The last column divides CPU times instead (all threads of the process): for one-thread cases it
+    is the cost without the waiting a busy machine adds; for several threads it is not a speed.
+    """
+    rebound = {(c["group"], c["n"], c["integrator"]): c for c in doc.get("cases", []) if c["engine"] == "rebound"}
+    lines = ["| group | N | orbitsim | threads | time/step | REBOUND | time/step | orbitsim / REBOUND | "
+             "same, CPU time |", "|---|---|---|---|---|---|---|---|---|"]
+    for c in doc.get("cases", []):
+        if c["engine"] != "orbitsim":
+            continue
+        scheme = PARTNER.get(c["integrator"], "leapfrog")
+        twin = rebound.get((c["group"], c["n"], scheme))
+        if twin is None:
+            continue
+        ratio = c["per_step_s"]["median"] / twin["per_step_s"]["median"]
+        cpu = c["cpu_per_step_s"]["median"] / twin["cpu_per_step_s"]["median"]
+        lines.append(f"| {c['group']} | {c['n']} | {c['integrator']} | {c['threads']} | "
+                     f"{_time(c['per_step_s']['median'])} | {scheme} | {_time(twin['per_step_s']['median'])} | "
+                     f"{ratio:.3g} ({1 / ratio:.3g}x faster) | {cpu:.3g} |")
+    return "\n".join(lines) if len(lines) > 2 else "(no case has a REBOUND partner)"
+
+
+def _cases_table(cases: list[dict[str, Any]]) -> str:
+    lines = ["| N | engine | integrator | threads | steps | time/step median (min - max) | pairs/s | "
+             "first call (jit) |", "|---|---|---|---|---|---|---|---|"]
+    for c in sorted(cases, key=lambda c: (c["n"], c["engine"] != "orbitsim", c["integrator"], c["threads"])):
+        lines.append(f"| {c['n']} | {c['engine']} | {c['integrator']} | {c['threads']} | {c['steps']} | "
+                     f"{_spread(c['per_step_s'])} | {c['pairs_per_s']['median']:.3g} | "
+                     f"{_time(c['first_call_s'])} ({c['jit']}) |")
+    return "\n".join(lines)
+
+
+def _kernels_table(p: dict[str, Any]) -> str:
+    names = ("all_pairs", "rows", "blocked")
+    lines = [f"One force evaluation, pair interactions/s; blocked = {p['threads']} threads. "
+             f"all_pairs faster than rows up to N = {p['all_pairs_until']} (SMALL_N_MAX = {p['small_n_max']}); "
+             f"blocked faster than rows from N = {p['blocked_from']} (PARALLEL_MIN_N = {p['parallel_min_n']}).", "",
+             "| N | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for row in p["rows"]:
+        cells = [f"{row['pairs_per_s'][k]:.3g}" if k in row["pairs_per_s"] else "-" for k in names]
+        lines.append(f"| {row['n']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _probes(doc: dict[str, Any]) -> list[str]:
+    out: list[str] = []
+    for p in doc.get("probes", []):
+        out.append(f"### {p['group']} ({p['kind']})\n")
+        if p["kind"] == "kernels":
+            out.append(_kernels_table(p))
+        elif p["kind"] == "startup":
+            out.append(f"Command: `{p['command']}`, integrator {p['integrator']}, N = {p['n']}, "
+                       f"{p['steps']} steps.\n\n- warm cache: {_spread(p['warm'])} wall, "
+                       f"{_spread(p['warm_cpu'])} CPU")
+            if "cold_s" in p:
+                out.append(f"- cold cache (fresh ORBITSIM_CACHE_DIR): {_time(p['cold_s'])} wall, "
+                           f"{_time(p['cold_cpu_s'])} CPU, {len(p['compiled_functions'])} functions compiled: "
+                           f"{', '.join(p['compiled_functions']) or '(none)'}")
+            out.append("")
+        elif p["kind"] == "sampling":
+            out.append(f"{p['integrator']}, N = {p['n']}, {p['steps']} steps: every {p['every']} steps "
+                       f"({p['samples']} samples) {_spread(p['with_samples'])}; first and last only "
+                       f"{_spread(p['without_samples'])}; overhead {p['overhead']:+.1%} "
+                       f"(from the minima {p['overhead_min']:+.1%}).\n")
+        elif p["kind"] == "memory":
+            big = p["large"]
+            out.append(f"- N = {big['n']}, {big['steps']} steps: peak RSS {big['peak_rss_mb']:.0f} MB "
+                       f"(after imports and a warm-up: {big['baseline_rss_mb']:.0f} MB); limit {p['limit_mb']:g} MB.")
+            if "trace" in p:
+                t = p["trace"]
+                rss = [row[2] for row in t["series"]]
+                out.append(f"- trace of {t['samples']:,} samples (N = {t['n']}, via {t['path']}, "
+                           f"{t['wall_s']:.0f} s, file {t['file_mb']:.0f} MB): RSS {min(rss):.0f} - {max(rss):.0f} MB, "
+                           f"growth after the first tenth {t['growth_after_first_tenth_mb']:+.1f} MB.")
+            out.append("")
+    return out
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    """The whole ``results.md`` text."""
+    m = doc["machine"]
+    ceiling = doc.get("ceiling") or {}
+    parts = [f"# orbitsim benchmark: {doc['matrix']['name']}" + (" (quick)" if doc["matrix"]["quick"] else ""), ""]
+    parts.append(f"{m.get('cpu_model')} ({m.get('cpu_count')} cores), {doc['threads']} threads "
+                 f"({m.get('numba_threading_layer')}), started {doc.get('started')}, {doc.get('wall_s', 0):.0f} s; "
+                 f"load average {_load(m.get('load_average'))} at start, {_load(m.get('load_average_end'))} at end.")
+    parts.append(f"orbitsim {m.get('orbitsim_version')}, numba {m.get('numba_version')}, numpy "
+                 f"{m.get('numpy_version')}, REBOUND {m.get('rebound_version')}, Python {m.get('python_version')}.")
+    if ceiling:
+        parts.append(f"Measured ceiling of the square-root/division unit: {ceiling['full_per_core']:.3g} "
+                     f"interactions/s per core computing every pair, {ceiling['pairs_once_per_core']:.3g} "
+                     "counting N(N-1) when each pair is computed once.")
+    parts += ["", "## Targets", "", targets_table(doc), "", "## orbitsim beside REBOUND (same run, interleaved)",
+              "", side_by_side(doc), ""]
+    groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for c in doc.get("cases", []):
+        groups[c["group"]].append(c)
+    for name, cases in groups.items():
+        parts += [f"## {name}", "", _cases_table(cases), ""]
+    if doc.get("probes"):
+        parts += ["## Kernels, start-up, output and memory", "", *_probes(doc)]
+    if doc.get("skipped"):
+        parts += ["## Skipped", "", *(f"- {s['id']}: {s['reason']}" for s in doc["skipped"]), ""]
+    return "\n".join(parts) + "\n"
+
+
+def _load(values: list[float] | None) -> str:
+    return "/".join(f"{v:.1f}" for v in values) if values else "n/a"

@@ -1,0 +1,167 @@
+"""The performance targets of orbitsim, checked against a results document.
+
+Each target reads what it needs from the results; when the matrix did not measure it, the
+target is reported as "not measured" instead of failing. Ratios against REBOUND use cases of
+the same group and the same N, which the runner measured interleaved, so they share the
+machine's load. ``margin`` is always oriented so that >= 1 means the target is met.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["TARGETS", "evaluate_targets"]
+
+Doc = dict[str, Any]
+
+#: Force throughput at N = 16,384 through the stepping loop, 2 cores (pair interactions/s).
+THROUGHPUT_16K = 3.5e9
+#: A step at N = 4,096 at least this many times faster than REBOUND's leapfrog.
+SPEEDUP_4096 = 10.0
+#: Time per step at N = 5 at most this fraction of REBOUND's leapfrog.
+SMALL_N_FRACTION = 0.5
+#: Whole-process start-up of ``orbitsim run`` on a tiny scenario, warm cache (s).
+STARTUP_WARM_S = 1.0
+#: Cost of sampling every 100 steps at N = 9, relative to no sampling.
+SAMPLING_OVERHEAD = 0.05
+#: Peak RSS of a 16,384-body run (MiB).
+MEMORY_16K_MB = 300.0
+#: RSS growth allowed over the last nine tenths of a long trace-writing run, as a fraction of
+#: the RSS at its first tenth: allocator noise, not growth with the samples written.
+TRACE_GROWTH = 0.05
+
+
+def _orbitsim_steps(doc: Doc, n: int, integrators: tuple[str, ...]) -> dict[str, Any] | None:
+    """The orbitsim case at N with the most threads, preferring the order of ``integrators``."""
+    found = [c for c in doc.get("cases", []) if c["engine"] == "orbitsim" and c["n"] == n
+             and c["integrator"] in integrators]
+    if not found:
+        return None
+    return max(found, key=lambda c: (c["threads"], -integrators.index(c["integrator"])))
+
+
+def _rebound_twin(doc: Doc, case: dict[str, Any], scheme: str = "leapfrog") -> dict[str, Any] | None:
+    for c in doc.get("cases", []):
+        if c["engine"] == "rebound" and c["integrator"] == scheme and c["n"] == case["n"] \
+                and c["group"] == case["group"]:
+            return c
+    return None
+
+
+def _probe(doc: Doc, kind: str) -> dict[str, Any] | None:
+    return next((p for p in doc.get("probes", []) if p["kind"] == kind), None)
+
+
+def _row(key: str, label: str, required: str, measured: float | None, text: str, margin: float | None,
+         where: str = "") -> dict[str, Any]:
+    met = None if margin is None else bool(margin >= 1.0)
+    return {"key": key, "target": label, "required": required, "measured": measured, "measured_text": text,
+            "margin": margin, "met": met, "source": where}
+
+
+def _throughput(doc: Doc) -> dict[str, Any]:
+    case = _orbitsim_steps(doc, 16384, ("verlet", "semi_implicit_euler", "leapfrog"))
+    label = "force throughput, N = 16,384, stepping loop, all threads"
+    if case is None:
+        return _row("throughput_16k", label, ">= 3.5e9 pairs/s", None, "not measured", None)
+    rate = case["pairs_per_s"]["median"]
+    return _row("throughput_16k", label, f">= {THROUGHPUT_16K:.2g} pairs/s", rate,
+                f"{rate:.3g} pairs/s ({case['threads']} threads)", rate / THROUGHPUT_16K, case["id"])
+
+
+def _speedup(doc: Doc) -> dict[str, Any]:
+    label = "step at N = 4,096 vs REBOUND leapfrog"
+    case = _orbitsim_steps(doc, 4096, ("verlet", "semi_implicit_euler", "leapfrog"))
+    twin = _rebound_twin(doc, case) if case else None
+    if twin is None:
+        return _row("speedup_4096", label, ">= 10x faster", None, "not measured", None)
+    ratio = twin["per_step_s"]["median"] / case["per_step_s"]["median"]
+    return _row("speedup_4096", label, f">= {SPEEDUP_4096:g}x faster", ratio, f"{ratio:.1f}x faster",
+                ratio / SPEEDUP_4096, f"{case['id']} vs {twin['id']}")
+
+
+def _small_n(name: str) -> Callable[[Doc], dict[str, Any]]:
+    def check(doc: Doc) -> dict[str, Any]:
+        label = f"{name} step at N = 5 vs REBOUND leapfrog"
+        case = _orbitsim_steps(doc, 5, (name,))
+        twin = _rebound_twin(doc, case) if case else None
+        if twin is None:
+            return _row(f"small_n_{name}", label, "<= 0.5x the time", None, "not measured", None)
+        frac = case["per_step_s"]["median"] / twin["per_step_s"]["median"]
+        cpu = case["cpu_per_step_s"]["median"] / twin["cpu_per_step_s"]["median"]
+        text = (f"{frac:.2f}x the time ({case['per_step_s']['median'] * 1e9:.0f} ns vs "
+                f"{twin['per_step_s']['median'] * 1e9:.0f} ns; CPU time {cpu:.2f}x)")
+        return _row(f"small_n_{name}", label, f"<= {SMALL_N_FRACTION:g}x the time", frac, text,
+                    SMALL_N_FRACTION / frac, f"{case['id']} vs {twin['id']}")
+    return check
+
+
+def _startup_warm(doc: Doc) -> dict[str, Any]:
+    p = _probe(doc, "startup")
+    label = "CLI start-up, tiny scenario, warm cache"
+    if p is None:
+        return _row("startup_warm", label, "< 1.0 s", None, "not measured", None)
+    t = p["warm"]["median"]
+    text = f"{t:.2f} s wall, {p['warm_cpu']['median']:.2f} s CPU ({p['command']})"
+    return _row("startup_warm", label, f"< {STARTUP_WARM_S:g} s", t, text,
+                STARTUP_WARM_S / t, p["group"])
+
+
+def _startup_cold(doc: Doc) -> dict[str, Any]:
+    p = _probe(doc, "startup")
+    label = "CLI start-up, cold cache: only the integrator used compiled"
+    if p is None or "cold_s" not in p:
+        return _row("startup_cold", label, "reported; no other scheme", None, "not measured", None)
+    foreign = p["foreign_integrator_functions"]
+    text = f"{p['cold_s']:.1f} s wall, {p['cold_cpu_s']:.1f} s CPU, {len(p['compiled_functions'])} functions" + (
+        f"; also compiled: {', '.join(foreign)}" if foreign else f"; only {p['integrator']} + shared kernels")
+    return _row("startup_cold", label, "reported; no other scheme", p["cold_s"], text,
+                0.0 if foreign else 1.0, p["group"])
+
+
+def _sampling(doc: Doc) -> dict[str, Any]:
+    p = _probe(doc, "sampling")
+    label = "output overhead, every 100 steps, N = 9"
+    if p is None:
+        return _row("sampling_overhead", label, "< 5%", None, "not measured", None)
+    over = p["overhead"]
+    margin = SAMPLING_OVERHEAD / over if over > 0 else float("inf")
+    return _row("sampling_overhead", label, f"< {SAMPLING_OVERHEAD:.0%}", over,
+                f"{over:+.1%} (every {p['every']}, N = {p['n']})", margin, p["group"])
+
+
+def _memory_large(doc: Doc) -> dict[str, Any]:
+    p = _probe(doc, "memory")
+    label = "peak memory, 16,384-body run"
+    if p is None:
+        return _row("memory_16k", label, "< 300 MB", None, "not measured", None)
+    peak = p["large"]["peak_rss_mb"]
+    return _row("memory_16k", label, f"< {p['limit_mb']:g} MB", peak,
+                f"{peak:.0f} MB peak RSS (N = {p['large']['n']})", p["limit_mb"] / peak, p["group"])
+
+
+def _memory_trace(doc: Doc) -> dict[str, Any]:
+    p = _probe(doc, "memory")
+    label = "memory flat while writing many samples"
+    trace = p.get("trace") if p else None
+    if trace is None:
+        return _row("memory_trace", label, "flat", None, "not measured", None)
+    settled = max(1.0, trace["series"][max(0, len(trace["series"]) // 10)][2])
+    growth = trace["growth_after_first_tenth_mb"]
+    margin = (TRACE_GROWTH * settled) / growth if growth > 0 else float("inf")
+    return _row("memory_trace", label, f"growth < {TRACE_GROWTH:.0%} after the first tenth", growth,
+                f"{trace['samples']:.3g} samples: +{growth:.1f} MB after the first tenth "
+                f"(RSS {settled:.0f} MB, peak {trace['peak_rss_mb']:.0f} MB)", margin, p["group"])
+
+
+#: Every target, in the order of the issue.
+TARGETS: tuple[Callable[[Doc], dict[str, Any]], ...] = (
+    _throughput, _speedup, _small_n("semi_implicit_euler"), _small_n("verlet"), _startup_warm,
+    _startup_cold, _sampling, _memory_large, _memory_trace,
+)
+
+
+def evaluate_targets(doc: Doc) -> list[dict[str, Any]]:
+    """One row per target: required, measured, margin (>= 1 met) and where it was measured."""
+    return [check(doc) for check in TARGETS]

@@ -1,0 +1,301 @@
+"""Deciding how a run continues: ``orbitsim resume`` and ``orbitsim run --from``.
+
+Where a run's state can be found, newest first:
+
+1. ``<OUT>.ckpt`` with ``<OUT>.journal``: a checkpointed run that was killed (or is running:
+   the journal's lock says so). Unless ``<OUT>`` is this run's complete trace, already renamed
+   into place when the kill came, in which case the side files are stale and removed.
+2. ``<OUT>`` with status ``interrupted`` and a ``checkpoint`` group: a run stopped by Ctrl-C,
+   SIGTERM or ``stop()``; the group names how many of its samples go with the state.
+3. ``<OUT>`` with status ``complete`` and a ``checkpoint`` group: nothing to resume; ``run --from``
+   extends it.
+
+Resuming always continues the scenario stored with the state. A scenario or integrator given
+on top must be the same, or the request is refused with a one-line :class:`CheckpointError`:
+another scheme's state cannot be restored, and another scenario would not be the same run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from orbitsim.checkpoint.sinks import RunStart, check_side_files, remove_side_files
+from orbitsim.io.checkpoint import (
+    Checkpoint,
+    CheckpointError,
+    Journal,
+    checkpoint_path,
+    journal_dtype,
+    journal_path,
+    read_checkpoint,
+    read_checkpoint_group,
+)
+
+if TYPE_CHECKING:
+    from orbitsim.scenario import Scenario
+
+__all__ = ["Continuation", "TraceState", "prepare_extension", "prepare_resume", "read_trace_state",
+           "resolve_output", "scenario_differences"]
+
+#: Suffixes of the files beside an output path; ``resume`` accepts any of them for the output.
+SIDE_SUFFIXES = (".ckpt.tmp", ".ckpt", ".journal", ".tmp")
+
+
+@dataclasses.dataclass
+class Continuation:
+    """What to run next: ``scenario`` from ``start`` into ``output``; ``start`` None means nothing
+    (``note`` says why, e.g. the run is already complete)."""
+
+    output: Path
+    scenario: Scenario | None = None
+    start: RunStart | None = None
+    note: str = ""
+
+
+@dataclasses.dataclass
+class TraceState:
+    """A trace's root attributes, sample count and final state (None when it has none)."""
+
+    attrs: dict[str, Any]
+    n_samples: int
+    checkpoint: Checkpoint | None
+
+
+def resolve_output(path: str | os.PathLike) -> Path:
+    """The output path of a run, given it or one of its side files (``.tmp``, ``.ckpt``, ``.journal``)."""
+    text = os.fspath(path)
+    for suffix in SIDE_SUFFIXES:
+        if text.endswith(suffix) and len(text) > len(suffix):
+            return Path(text[: -len(suffix)])
+    return Path(text)
+
+
+def read_trace_state(path: Path) -> TraceState:
+    """Attributes, sample count and ``checkpoint`` group of a trace.
+
+    Raises
+    ------
+    TraceError
+        If the file is missing, foreign or damaged (:class:`CheckpointError` for its group).
+    """
+    from orbitsim.io.trace import TraceError, open_trace
+
+    with open_trace(path) as f:
+        try:
+            attrs = {k: (v.decode() if isinstance(v, bytes) else v.item() if hasattr(v, "item") else v)
+                     for k, v in f.attrs.items()}
+            n_samples = int(f["time"].shape[0])
+            group = f.get("checkpoint")
+            ckpt = None
+            if group is not None:
+                ckpt = read_checkpoint_group(group, f"{path} (checkpoint)", scenario=str(attrs.get("scenario", "")))
+        except (KeyError, OSError) as err:
+            raise TraceError(f"{path}: damaged trace ({err})") from None
+    if ckpt is not None and (ckpt.samples_written > n_samples or ckpt.scenario_sha256 != attrs.get("scenario_sha256")):
+        raise CheckpointError(f"{path}: damaged trace (its checkpoint does not fit its samples or scenario)")
+    return TraceState(attrs=attrs, n_samples=n_samples, checkpoint=ckpt)
+
+
+def stored_scenario(text: str, sha256: str, where: Path, source: str = "") -> Scenario:
+    """The scenario a checkpoint or trace stores, checked against its SHA-256; ``source`` is where
+    it first came from (kept in the continued trace's ``scenario_source``)."""
+    from orbitsim.scenario import ScenarioError, scenario_from_dict
+    from orbitsim.scenario.yamlio import parse_yaml
+
+    label = f"{where} (stored scenario)"
+    try:
+        scenario = scenario_from_dict(parse_yaml(text, label)[0], source=label)
+    except ScenarioError as err:
+        raise CheckpointError(f"{where}: damaged stored scenario ({err})") from None
+    if scenario.sha256 != sha256:
+        raise CheckpointError(f"{where}: damaged stored scenario (it does not match its SHA-256)")
+    return scenario.with_overrides(source=source) if source else scenario
+
+
+def scenario_differences(a: Scenario, b: Scenario, ignore: tuple[str, ...] = ()) -> list[str]:
+    """What differs between two scenarios, one short phrase per key (``dt: 0.01 vs 0.02``)."""
+    da, db = a.to_dict(), b.to_dict()
+    da.update({f"output.{k}": v for k, v in da.pop("output").items()})
+    db.update({f"output.{k}": v for k, v in db.pop("output").items()})
+    diffs = []
+    for key in sorted(set(da) | set(db)):
+        if key in ignore or da.get(key) == db.get(key):
+            continue
+        if key == "bodies":
+            diffs.append(f"bodies differ ({len(da['bodies'])} vs {len(db['bodies'])} bodies)")
+        else:
+            diffs.append(f"{key}: {_short(da.get(key))} vs {_short(db.get(key))}")
+    return diffs
+
+
+def _short(value: Any) -> str:
+    text = "(none)" if value is None else str(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _check_same(stored: Scenario, where: Path, scenario: Scenario | None, integrator: str | None,
+                ignore: tuple[str, ...] = ()) -> None:
+    """Refuse another integrator or scenario than the stored one."""
+    from orbitsim.integrators.registry import canonical_name
+
+    if integrator is not None and canonical_name(integrator) != stored.integrator:
+        raise CheckpointError(f"{where}: the run was made with integrator {stored.integrator}; it cannot continue "
+                              f"with {canonical_name(integrator)} (a checkpoint holds one scheme's state). "
+                              "Leave out --integrator, or start a new run")
+    if scenario is not None:
+        diffs = scenario_differences(stored, scenario, ignore)
+        if diffs:
+            raise CheckpointError(f"{where}: SCENARIO is not the scenario of this run ({'; '.join(diffs)}); it "
+                                  "continues the scenario stored with it: leave SCENARIO out, or start a new run")
+
+
+def prepare_resume(path: str | os.PathLike, *, scenario: Scenario | None = None,
+                   integrator: str | None = None) -> Continuation:
+    """How to continue the run writing ``path`` (or one of its side files).
+
+    Parameters
+    ----------
+    path : path
+        The run's output (``OUT``), or ``OUT.tmp``, ``OUT.ckpt``, ``OUT.journal``.
+    scenario : Scenario, optional
+        If given, it must be the run's scenario.
+    integrator : str, optional
+        If given, it must be the run's integrator.
+
+    Returns
+    -------
+    Continuation
+        With ``start`` None when there is nothing to continue (``note`` says why).
+
+    Raises
+    ------
+    CheckpointError
+        Nothing resumable, damaged or foreign files, a live writer, or a different
+        scenario or integrator.
+    """
+    from orbitsim.io.trace import TraceError
+
+    output = resolve_output(path)
+    trace: TraceState | None = None
+    foreign = ""
+    if output.exists():
+        try:
+            trace = read_trace_state(output)
+        except TraceError as err:
+            if not checkpoint_path(output).exists():
+                raise
+            foreign = str(err)  # e.g. an unrelated file that a forced run will replace
+    if checkpoint_path(output).exists():
+        return _from_checkpoint_file(output, trace, foreign, scenario, integrator)
+    if trace is None:
+        if Path(f"{output}.tmp").exists():
+            raise CheckpointError(f"{output}: only {output}.tmp is left: a run without output.checkpoint was killed "
+                                  "before it could save its state, so it cannot be resumed; run it again (add "
+                                  "output.checkpoint to its scenario to make long runs resumable)")
+        raise CheckpointError(f"{output}: no trace or checkpoint to resume")
+    return _from_trace(output, trace, scenario, integrator)
+
+
+def _from_checkpoint_file(output: Path, trace: TraceState | None, foreign: str, scenario: Scenario | None,
+                          integrator: str | None) -> Continuation:
+    ckpt = read_checkpoint(checkpoint_path(output))
+    same_run = trace is not None and trace.attrs.get("scenario_sha256") == ckpt.scenario_sha256
+    if (same_run and trace.attrs.get("status") == "complete" and trace.checkpoint is not None
+            and trace.checkpoint.steps_done >= ckpt.steps_done):
+        check_side_files(output, force=True)  # refuses if a live process holds the journal
+        remove_side_files(output)
+        return Continuation(output, note=_complete_note(output, trace))
+    stored = stored_scenario(ckpt.scenario, ckpt.scenario_sha256, checkpoint_path(output), ckpt.scenario_source)
+    _check_same(stored, output, scenario, integrator)
+    if output.exists() and not (same_run or ckpt.force):
+        why = f" ({foreign})" if foreign else ""
+        raise CheckpointError(f"{output}: exists and is not this run's trace{why}; move it away, then resume")
+    journal = Journal(journal_path(output), journal_dtype(stored.n_bodies, bool(stored.record_positions)),
+                      keep_bytes=ckpt.journal_bytes, crc32=ckpt.journal_crc32)
+    if journal.records != ckpt.samples_written:
+        journal.close()
+        raise CheckpointError(f"{output}: damaged checkpoint ({ckpt.samples_written} samples, journal holds "
+                              f"{journal.records})")
+    return Continuation(output, stored, RunStart(ckpt, journal=journal, overwrite=True, resumes=ckpt.resumes + 1))
+
+
+def _complete_note(output: Path, trace: TraceState) -> str:
+    steps = trace.attrs.get("steps_done")
+    return (f"{output}: the run is already complete ({steps} steps); extend it with "
+            f"`orbitsim run --from {output} --steps N`")
+
+
+def _from_trace(output: Path, trace: TraceState, scenario: Scenario | None, integrator: str | None) -> Continuation:
+    status = trace.attrs.get("status")
+    if status == "complete":
+        return Continuation(output, note=_complete_note(output, trace))
+    if status == "diverged":
+        raise CheckpointError(f"{output}: the run diverged; there is no finite state to continue from")
+    if status != "interrupted":
+        raise CheckpointError(f"{output}: is a partial trace (status {status!r}), not a resumable run")
+    if trace.checkpoint is None:
+        raise CheckpointError(f"{output}: not resumable: the trace holds no checkpoint state (the run stopped before "
+                              "its first step, or was written by an older orbitsim); run it again")
+    stored = stored_scenario(str(trace.attrs["scenario"]), trace.checkpoint.scenario_sha256, output,
+                             str(trace.attrs.get("scenario_source", "")))
+    _check_same(stored, output, scenario, integrator)
+    check_side_files(output, force=True)
+    start = RunStart(trace.checkpoint, source_trace=output, overwrite=True, resumes=trace.checkpoint.resumes + 1)
+    return Continuation(output, stored, start)
+
+
+def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_end: float | None = None,
+                      output: str | os.PathLike | None = None, integrator: str | None = None,
+                      scenario: Scenario | None = None, force: bool = False) -> Continuation:
+    """How to extend the complete run in ``source`` by ``steps`` more steps, or to ``t_end``.
+
+    The extended run is the stored scenario with the longer duration, continued from the final
+    state: its samples are those of one longer run with the same sampling rule (plus the old
+    final sample when it was not on that rule's grid). ``output`` defaults to ``source``, which is
+    then replaced, atomically, once the extension has finished; another existing file needs
+    ``force``.
+
+    Raises
+    ------
+    CheckpointError
+        If ``source`` is not a complete trace with a final state, or a different integrator or
+        scenario (other than its duration) is asked for.
+    OutputError
+        If ``output`` exists (and is not ``source``) without ``force``.
+    """
+    from orbitsim.runner import OutputError
+
+    src = Path(source)
+    trace = read_trace_state(src)
+    status = trace.attrs.get("status")
+    if status == "interrupted":
+        raise CheckpointError(f"{src}: the run was interrupted; finish it with `orbitsim resume {src}`, then extend it")
+    if status != "complete":
+        raise CheckpointError(f"{src}: only a complete run can be extended (status {status!r})")
+    if trace.checkpoint is None:
+        raise CheckpointError(f"{src}: holds no final state (written by an older orbitsim), so it cannot be extended "
+                              "bit for bit; run the longer scenario instead")
+    stored = stored_scenario(str(trace.attrs["scenario"]), trace.checkpoint.scenario_sha256, src,
+                             str(trace.attrs.get("scenario_source", "")))
+    _check_same(stored, src, scenario, integrator, ignore=("steps",))
+    if trace.checkpoint.steps_done != stored.steps:
+        raise CheckpointError(f"{src}: damaged trace (final state at step {trace.checkpoint.steps_done}, the run "
+                              f"asked for {stored.steps})")
+    longer = stored.with_overrides(steps=stored.steps + steps) if steps is not None else stored.with_overrides(
+        t_end=t_end)
+    if longer.steps <= stored.steps:
+        raise CheckpointError(f"{src}: --t-end {t_end:g} is not past the run's end (t = {stored.end_time:.10g})")
+    dst = Path(output) if output is not None else src
+    in_place = dst.exists() and dst.resolve() == src.resolve()
+    if not in_place:
+        if dst.is_dir() or not dst.parent.is_dir():
+            raise OutputError(f"{dst}: not a file path in an existing directory")
+        if dst.exists() and not force:
+            raise OutputError(f"{dst}: output file already exists; use --force to overwrite it")
+    check_side_files(dst, force)
+    remove_side_files(dst)
+    start = RunStart(trace.checkpoint, source_trace=src, overwrite=in_place or force, resumes=trace.checkpoint.resumes)
+    return Continuation(dst, longer, start)

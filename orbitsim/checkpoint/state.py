@@ -1,0 +1,81 @@
+"""Capture and restore a :class:`~orbitsim.simulation.Simulation`'s complete state, generically.
+
+See :mod:`orbitsim.checkpoint` (point 1) for why everything is saved and nothing recomputed.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from orbitsim.io.checkpoint import CheckpointError, SimState, layout_json
+
+if TYPE_CHECKING:
+    from orbitsim.simulation import Simulation
+
+__all__ = ["capture_state", "restore_state"]
+
+
+def capture_state(sim: Simulation) -> SimState:
+    """Copies of everything ``sim`` continues from (see the module docstring, point 1)."""
+    arrays: list[np.ndarray] = []
+    layout = _flatten(sim.work, arrays)
+    return SimState(steps_done=int(sim.steps_done), pos=sim.pos.copy(), vel=sim.vel.copy(), acc=sim.acc.copy(),
+                    work=tuple(arrays), work_layout=layout_json(layout))
+
+
+def _flatten(obj: Any, out: list[np.ndarray]) -> Any:
+    """Append every array (copied) and constant of ``obj`` to ``out``; return its nesting."""
+    if isinstance(obj, np.ndarray):
+        out.append(obj.copy())
+        return "a"
+    if isinstance(obj, tuple | list):
+        return [_flatten(item, out) for item in obj]
+    if isinstance(obj, bool | int | float | np.generic):
+        out.append(np.asarray(obj))
+        return "s"
+    raise CheckpointError(f"cannot checkpoint integrator work of type {type(obj).__name__}")
+
+
+def restore_state(sim: Simulation, state: SimState) -> None:
+    """Put ``state`` back into ``sim`` in place: arrays, work, step count.
+
+    Raises
+    ------
+    CheckpointError
+        If shapes, dtypes, the work layout or its constants do not match ``sim`` (the
+        checkpoint belongs to another system, integrator or integrator settings).
+    """
+    for name in ("pos", "vel", "acc"):
+        have, saved = getattr(sim, name), getattr(state, name)
+        if have.shape != saved.shape:
+            raise CheckpointError(f"checkpoint {name} has shape {saved.shape}, the run needs {have.shape}")
+    arrays = iter(state.work)
+    try:
+        _restore(sim.work, json.loads(state.work_layout), arrays)
+    except StopIteration:
+        raise CheckpointError("checkpoint holds fewer work arrays than the integrator keeps") from None
+    if next(arrays, None) is not None:
+        raise CheckpointError("checkpoint holds more work arrays than the integrator keeps")
+    sim.pos[...] = state.pos
+    sim.vel[...] = state.vel
+    sim.acc[...] = state.acc
+    sim.steps_done = int(state.steps_done)
+
+
+def _restore(obj: Any, layout: Any, arrays: Any) -> None:
+    if layout == "a":
+        saved = next(arrays)
+        if not isinstance(obj, np.ndarray) or obj.shape != saved.shape or obj.dtype != saved.dtype:
+            raise CheckpointError("checkpoint work arrays do not fit this integrator (shape or type differs)")
+        obj[...] = saved
+    elif layout == "s":
+        if not np.array_equal(np.asarray(obj), next(arrays)):
+            raise CheckpointError("checkpoint was written with other integrator settings (a constant differs)")
+    elif isinstance(layout, list) and isinstance(obj, tuple | list) and len(obj) == len(layout):
+        for item, sub in zip(obj, layout, strict=True):
+            _restore(item, sub, arrays)
+    else:
+        raise CheckpointError("checkpoint work layout does not fit this integrator")

@@ -1,0 +1,112 @@
+"""``orbitsim batch``: run a parameter sweep on Dask (local cluster by default)."""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import click
+
+from orbitsim.cli.errors import EXIT_FAILURE, EXIT_USAGE, fail, reports_errors
+
+#: Exit status after Ctrl-C (the finished runs are kept; rerunning the command resumes).
+EXIT_INTERRUPTED = 130
+
+
+@click.command("batch")
+@click.argument("sweep_file", type=click.Path(dir_okay=False), metavar="SWEEP.yaml")
+@click.option("-o", "--outdir", type=click.Path(file_okay=False), default=None,
+              help="Output directory (default: out/<sweep name>). Must be shared with the workers.")
+@click.option("--scheduler", metavar="ADDRESS", default=None,
+              help="Submit to an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                   "(default: start a local cluster).")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Worker processes of the local cluster (default: one per core).")
+@click.option("--threads", type=click.IntRange(min=1), default=None,
+              help="Numba threads per run (default: cores // workers locally; the workers' "
+                   "NUMBA_NUM_THREADS on an existing cluster).")
+@click.option("--resume/--no-resume", default=True, show_default=True,
+              help="Skip runs whose trace is complete and matches its scenario; --no-resume reruns all.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Show a progress bar of finished runs on stderr.")
+@reports_errors
+def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers: int | None,
+            threads: int | None, resume: bool, progress: bool) -> None:
+    """Run every case of a sweep and write OUTDIR/runs/<run-id>.h5 per run,
+    OUTDIR/summary.csv and OUTDIR/summary.h5.
+
+    A sweep file names a base scenario and either a `grid` of values for dotted
+    key paths (every combination runs) or a list of `cases`. Running the same
+    command again finishes an interrupted sweep. See docs/batch.md.
+
+    Exit status: 0 when every run finished (complete or diverged: both are
+    results), 1 when a run failed (its error is in the summary), 2 for an
+    invalid sweep or an unreachable cluster, 130 after Ctrl-C.
+
+    \b
+    Examples:
+      orbitsim batch configs/sweeps/integrators_dt.yaml -o out/int_dt
+      orbitsim batch configs/sweeps/plummer_seeds.yaml --workers 2
+      orbitsim batch sweep.yaml --scheduler tcp://127.0.0.1:8786
+    """
+    from pathlib import Path
+
+    from orbitsim.batch.cluster import ClusterError
+    from orbitsim.batch.driver import run_sweep
+    from orbitsim.batch.summary import format_table
+    from orbitsim.batch.sweep import SweepError, load_sweep
+
+    try:
+        sweep = load_sweep(sweep_file)
+    except SweepError as err:
+        fail(str(err), EXIT_USAGE)
+    target = Path(outdir) if outdir else Path("out") / sweep.name
+    bar = _Bar(progress)
+    try:
+        outcome = run_sweep(sweep, target, scheduler=scheduler, workers=workers, threads=threads,
+                            resume=resume, progress=bar.update, on_start=bar.start)
+    except ClusterError as err:
+        fail(str(err), EXIT_USAGE)
+    except KeyboardInterrupt:
+        fail(f"interrupted; finished runs are kept in {target / 'runs'} and {target / 'summary.csv'} lists "
+             "them: run the same command again to finish the sweep", EXIT_INTERRUPTED)
+    finally:
+        bar.close()
+    click.echo(format_table(outcome.rows, sweep.params))
+    counts = outcome.counts
+    parts = [f"{counts[s]} {s}" for s in ("complete", "diverged", "failed") if counts[s]]
+    click.echo(f"{len(outcome.rows)} runs: {', '.join(parts)}; {outcome.resumed} reused from earlier traces. "
+               f"Summary: {outcome.files[0]}")
+    if counts["failed"]:
+        fail(f"{counts['failed']} run(s) failed; their errors are in the summary", EXIT_FAILURE)
+
+
+class _Bar:
+    """A click progress bar of finished runs, opened once the number of runs to do is known."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.bar: Any = None
+        self.shown = 0
+
+    def start(self, pending: int, reused: int, where: str) -> None:
+        if reused:
+            click.echo(f"{reused} run(s) already complete: reusing their traces", err=True)
+        if not pending:
+            return
+        click.echo(f"running {pending} run(s) on {where}", err=True)
+        if self.enabled:
+            self.bar = click.progressbar(length=pending, label="runs", file=sys.stderr,
+                                         show_pos=True, show_eta=True,
+                                         item_show_func=lambda row: row and f"{row['run_id']} {row['status']}")
+            self.bar.__enter__()
+
+    def update(self, finished: int, total: int, row: dict[str, Any]) -> None:
+        if self.bar is not None:
+            self.bar.update(finished - self.shown, row)
+            self.shown = finished
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None

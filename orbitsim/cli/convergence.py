@@ -1,0 +1,107 @@
+"""``orbitsim convergence``: measured order of accuracy against a REBOUND IAS15 reference."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from orbitsim.cli.compare import command_line, prepare_outdir, split_list
+from orbitsim.cli.errors import EXIT_FAILURE, fail, reports_errors
+from orbitsim.cli.options import FINITE_POSITIVE, quiet_option, scenario_argument
+
+OUTPUT_FILES = ("summary.json", "report.md", "report.html", "convergence.png", "work_precision.png")
+
+
+def parse_dts(text: str | None) -> list[float] | None:
+    """``"0.01,0.005"`` -> [0.01, 0.005]; a bad entry ends the command with exit 2."""
+    if not text:
+        return None
+    try:
+        values = [float(item) for item in split_list(text)]
+    except ValueError:
+        fail(f"--dts expects comma-separated numbers, got {text!r}")
+    return values
+
+
+@click.command("convergence")
+@scenario_argument()
+@click.option("-o", "--outdir", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Directory for summary.json, report.md, report.html, convergence.png and "
+                   "work_precision.png. Example: -o conv/")
+@click.option("--integrators", default=None, metavar="A,B,...",
+              help="orbitsim integrators (default: every registered one). Example: --integrators verlet,rk4")
+@click.option("--rebound", "rebound_schemes", default=None, metavar="A,B,...",
+              help="Fixed-step REBOUND integrators, NAME[:OPTION] as for compare (default: the partners of "
+                   "the orbitsim integrators, plus whfast when body 0 dominates; 'none' for none). "
+                   "Example: --rebound leapfrog:4,whfast")
+@click.option("--dts", default=None, metavar="DT1,DT2,...",
+              help="The dt ladder (default: the scenario's dt times 4, 2, 1, 1/2, 1/4, 1/8). "
+                   "Example: --dts 0.004,0.002,0.001,0.0005")
+@click.option("--t-end", type=FINITE_POSITIVE, default=None,
+              help="End time T at which errors are measured (default: the scenario's end time). Prefer a "
+                   "T that is not a whole number of periods. Example: --t-end 4.4")
+@click.option("--steps", type=click.IntRange(min=1), default=None,
+              help="End time as a number of steps of the scenario's dt. Example: --steps 5000")
+@click.option("--check", is_flag=True,
+              help="Exit with status 1 when a fitted order is off its declared order by more than "
+                   "--order-tolerance. Example: --check")
+@click.option("--order-tolerance", type=FINITE_POSITIVE, default=0.3, show_default=True,
+              help="Allowed |fitted - declared| order for --check. Example: --order-tolerance 0.3")
+@click.option("--force", is_flag=True, help="Overwrite earlier results in OUTDIR. Example: --force")
+@quiet_option()
+@click.pass_context
+@reports_errors
+def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | None,
+            rebound_schemes: str | None, dts: str | None, t_end: float | None, steps: int | None,
+            check: bool, order_tolerance: float, force: bool, quiet: bool) -> None:
+    """Error at the end time against a REBOUND IAS15 reference for a ladder of dt values.
+
+    For every integrator and every dt the run takes the whole steps that fit in T and is compared
+    with IAS15 stopped exactly at the same time. The order is the least-squares slope of
+    log(error) against log(dt), over the finest points above the round-off floor and below 10 %
+    error; the report shows it next to the declared order, a log-log error-vs-dt figure and a
+    work-precision figure (error against wall time) with both codes on one chart.
+
+    \b
+    Examples:
+      orbitsim convergence two_body_eccentric -o conv/ --t-end 4.4
+      orbitsim convergence two_body_eccentric -o conv/ --integrators verlet,rk4,leapfrog4 \\
+          --dts 0.002,0.001,0.0005,0.00025 --t-end 4.4 --check
+    """
+    from orbitsim.analysis.compare import default_rebound
+    from orbitsim.analysis.convergence import ladder, run_convergence
+    from orbitsim.analysis.convergence_output import write_convergence_outputs
+    from orbitsim.integrators.registry import INTEGRATORS, canonical_name
+    from orbitsim.reference.bridge import parse_rebound_scheme
+    from orbitsim.scenario import load_scenario
+
+    if steps is not None and t_end is not None:
+        fail("give only one of --steps and --t-end")
+    sc = load_scenario(scenario)
+    end_time = t_end if t_end is not None else (steps or sc.steps) * sc.dt
+    try:
+        names = [canonical_name(n) for n in split_list(integrators)] or [spec.name for spec in INTEGRATORS]
+        if rebound_schemes and rebound_schemes.strip().lower() == "none":
+            schemes = []
+        elif rebound_schemes:
+            schemes = [s for s in (parse_rebound_scheme(t) for t in split_list(rebound_schemes)) if s.fixed_step]
+        else:
+            schemes = default_rebound(names, sc.masses)
+        rungs = ladder(sc.dt, parse_dts(dts))
+    except ValueError as err:
+        fail(str(err))
+    if any(dt > end_time for dt in rungs):
+        fail(f"every dt must be at most the end time T = {end_time:g}; got {max(rungs):g}")
+    prepare_outdir(outdir, OUTPUT_FILES, force)
+    say = (lambda _m: None) if quiet else click.echo
+    say(f"orbitsim convergence: {sc.name}, T = {end_time:g}, dt ladder {', '.join(f'{d:g}' for d in rungs)}")
+    result = run_convergence(sc, integrators=names, rebound=schemes, dts=rungs, end_time=end_time, progress=say)
+    paths = write_convergence_outputs(result, outdir, command_line(ctx), order_tolerance)
+    for s in result.series:
+        fitted = f"{s.fitted_order:5.2f}" if s.fitted_order == s.fitted_order else "  n/a"
+        say(f"  {s.display:<34} declared {s.declared_order!s:>4}  fitted {fitted}  {s.note}")
+    say(f"report: {paths['html']}")
+    off = result.check(order_tolerance)
+    if check and off:
+        fail("fitted order off the declared order: " + "; ".join(off), EXIT_FAILURE)

@@ -1,0 +1,102 @@
+"""One error path for every command: a one-line message on stderr and a documented exit code.
+
+Exit codes
+
+===  =====================================================================================
+0    success
+1    runtime failure (an I/O error, an unexpected error; set ``ORBITSIM_DEBUG=1`` for the
+     traceback)
+2    bad input or usage: a malformed scenario, a bad option, an unreadable trace, an
+     existing output file without ``--force``
+3    the run diverged (its state became non-finite); the trace is kept
+130  interrupted by SIGINT (Ctrl-C); 143 by SIGTERM; the trace is kept
+===  =====================================================================================
+
+The error classes are matched lazily, by module and name: importing them here would import
+numba and h5py at start-up, and an exception can only be an instance of a class whose module
+has already been imported.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from collections.abc import Callable
+from typing import Any, NoReturn, TypeVar
+
+import click
+
+__all__ = ["EXIT_DIVERGED", "EXIT_FAILURE", "EXIT_OK", "EXIT_USAGE", "fail", "reports_errors", "warn"]
+
+EXIT_OK = 0
+EXIT_FAILURE = 1
+EXIT_USAGE = 2
+EXIT_DIVERGED = 3
+
+#: Errors that mean "fix your input": (module, class name).
+USER_ERRORS: tuple[tuple[str, str], ...] = (
+    ("orbitsim.scenario.errors", "ScenarioError"),
+    ("orbitsim.io.trace", "TraceError"),
+    ("orbitsim.simulation", "SimulationError"),
+    ("orbitsim.integrators.registry", "UnknownIntegratorError"),
+    ("orbitsim.runner", "OutputError"),
+)
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def is_user_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is one of :data:`USER_ERRORS`."""
+    for module_name, class_name in USER_ERRORS:
+        module = sys.modules.get(module_name)
+        cls = getattr(module, class_name, None) if module is not None else None
+        if cls is not None and isinstance(exc, cls):
+            return True
+    return False
+
+
+def one_line(text: object) -> str:
+    """Collapse a message to one line."""
+    return " ".join(str(text).split())
+
+
+def fail(message: str, code: int = EXIT_USAGE) -> NoReturn:
+    """Print ``orbitsim: error: <message>`` on stderr and exit with ``code``."""
+    click.echo(f"orbitsim: error: {one_line(message)}", err=True)
+    raise click.exceptions.Exit(code)
+
+
+def warn(message: str) -> None:
+    """Print ``orbitsim: note: <message>`` on stderr."""
+    click.echo(f"orbitsim: note: {one_line(message)}", err=True)
+
+
+def reports_errors(func: F) -> F:
+    """Decorate a command so that errors end it with one line and the right exit code, no traceback."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (click.exceptions.Exit, click.ClickException, click.Abort):
+            raise
+        except KeyboardInterrupt:
+            fail("interrupted", 130)
+        except BrokenPipeError:
+            # The reader went away (`orbitsim info x.h5 | head`): stop quietly, as the Python docs
+            # advise, and keep the interpreter from complaining again while flushing stdout at exit.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            raise click.exceptions.Exit(EXIT_FAILURE) from None
+        except Exception as exc:
+            if is_user_error(exc):
+                fail(str(exc), EXIT_USAGE)
+            if os.environ.get("ORBITSIM_DEBUG"):
+                raise
+            if isinstance(exc, OSError):
+                where = f"{exc.filename}: " if exc.filename else ""
+                fail(f"{where}{exc.strerror or exc}", EXIT_FAILURE)
+            fail(f"unexpected {type(exc).__name__}: {exc} (set ORBITSIM_DEBUG=1 for a traceback)", EXIT_FAILURE)
+
+    return wrapper  # type: ignore[return-value]

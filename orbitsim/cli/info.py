@@ -1,0 +1,102 @@
+"""``orbitsim info``: what is in an HDF5 trace."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import click
+
+from orbitsim.cli.errors import reports_errors
+from orbitsim.cli.options import trace_argument
+
+#: Attributes shown in the header; the rest are listed under "attributes".
+_HEADER = ("format", "format_version", "orbitsim_version", "status", "message", "scenario_name",
+           "scenario_source", "scenario_sha256", "integrator", "integrator_settings", "dt", "steps_requested",
+           "steps_done", "G", "softening", "units", "wall_time_s", "threads")
+
+
+@click.command("info")
+@trace_argument()
+@click.option("--scenario", "show_scenario", is_flag=True,
+              help="Print only the fully resolved scenario stored in the trace, as YAML, to rerun it "
+                   "exactly. Example: orbitsim info run.h5 --scenario > rerun.yaml")
+@reports_errors
+def command(trace: str, show_scenario: bool) -> None:
+    """Show what is in TRACE.h5: status, run settings, samples, datasets and their shapes.
+
+    Also its checkpoint: the state the run stopped in and whether `orbitsim resume` or
+    `orbitsim run --from` can continue it. Given a checkpoint (OUT.h5.ckpt), or the output of a
+    killed run that has only a checkpoint so far, shows where that run stands instead.
+
+    \b
+    Examples:
+      orbitsim info two_body_circular.h5
+      orbitsim info run.h5 --scenario > rerun.yaml && orbitsim run rerun.yaml -o rerun.h5
+      orbitsim info long.h5.ckpt
+    """
+    from orbitsim.checkpoint.report import is_checkpoint_request
+
+    if is_checkpoint_request(trace):
+        _checkpoint_info(trace, show_scenario)
+        return
+    from orbitsim.checkpoint.report import trace_checkpoint_lines
+    from orbitsim.io.trace import open_trace_summary
+
+    summary = open_trace_summary(trace)
+    attrs = summary["attrs"]
+    if show_scenario:
+        click.echo(attrs.get("scenario", ""), nl=False)
+        return
+    click.echo(f"trace:    {summary['path']}")
+    for key in _HEADER:
+        if key in attrs and attrs[key] != "":
+            click.echo(f"  {key:<20} {_show(attrs[key], full=key == 'message')}")
+    click.echo(f"samples:  {summary['n_samples']}{_time_range(trace, summary['n_samples'])}")
+    click.echo(f"bodies:   {summary['n_bodies']}")
+    click.echo("datasets:")
+    for name, shape in sorted(summary["shapes"].items()):
+        click.echo(f"  {name:<20} {shape}")
+    click.echo("attributes:")
+    rest = sorted(k for k in attrs if k not in _HEADER)
+    width = max((len(k) for k in rest), default=0)
+    for key in rest:
+        value = f"<{len(attrs[key])} characters of YAML; see --scenario>" if key == "scenario" else _show(attrs[key])
+        click.echo(f"  {key:<{width}}  {value}")
+    for line in trace_checkpoint_lines(trace, attrs):
+        click.echo(line)
+
+
+def _checkpoint_info(path: str, show_scenario: bool) -> None:
+    """``info`` on a checkpoint: where the run stands, or (``--scenario``) its stored scenario."""
+    from orbitsim.checkpoint.plan import resolve_output
+    from orbitsim.checkpoint.report import checkpoint_file_lines
+    from orbitsim.io.checkpoint import checkpoint_path, read_checkpoint
+
+    if show_scenario:
+        click.echo(read_checkpoint(checkpoint_path(resolve_output(path))).scenario, nl=False)
+        return
+    for line in checkpoint_file_lines(path):
+        click.echo(line)
+
+
+def _show(value: Any, full: bool = False) -> str:
+    if isinstance(value, float):
+        return f"{value:.10g}"
+    text = str(value)
+    return text if full or len(text) <= 100 else text[:97] + "..."
+
+
+def _time_range(path: str, n_samples: int) -> str:
+    """`, t = a .. b, max |dE/E| = c` from the two small datasets (never the positions)."""
+    if n_samples == 0:
+        return ""
+    import h5py
+    import numpy as np
+
+    with h5py.File(path, "r") as f:
+        time = f["time"]
+        first, last = float(time[0]), float(time[-1])
+        err = np.asarray(f["energy_error"][()])
+    worst = float(np.max(np.abs(err))) if err.size else math.nan
+    return f", t = {first:.10g} .. {last:.10g}, max |dE/E| = {worst:.3g}"

@@ -1,0 +1,62 @@
+"""``orbitsim list``: the integrators and the bundled scenarios."""
+
+from __future__ import annotations
+
+import click
+
+from orbitsim.cli.errors import one_line, reports_errors
+
+
+@click.command("list")
+@click.argument("what", type=click.Choice(["integrators", "scenarios"]), required=False)
+@reports_errors
+def command(what: str | None) -> None:
+    """List integrators (order, symplecticity) or bundled scenarios (N, integrator, description).
+
+    With no argument, lists both. Bundled scenarios run by name: `orbitsim run NAME`.
+
+    \b
+    Examples:
+      orbitsim list
+      orbitsim list integrators
+      orbitsim list scenarios
+    """
+    if what in (None, "integrators"):
+        _integrators()
+    if what is None:
+        click.echo()
+    if what in (None, "scenarios"):
+        _scenarios()
+
+
+def _integrators() -> None:
+    from orbitsim.integrators.registry import INTEGRATORS
+
+    rows = [(s.name, ", ".join(s.aliases) or "-", str(s.order), "yes" if s.symplectic else "no",
+             "yes" if s.reversible else "no", str(s.force_evals), s.summary) for s in INTEGRATORS]
+    _table(("integrator", "aliases", "order", "symplectic", "reversible", "forces/step", "summary"), rows)
+
+
+def _scenarios() -> None:
+    from orbitsim.scenario import ScenarioError, bundled_scenarios, config_dir, load_scenario
+
+    found = bundled_scenarios()
+    if not found:
+        click.echo(f"no bundled scenarios found in {config_dir()} (set ORBITSIM_CONFIG_DIR)")
+        return
+    rows = []
+    for name in found:
+        try:
+            s = load_scenario(name)
+            rows.append((name, str(s.n_bodies), s.integrator, s.description))
+        except ScenarioError as err:  # list it anyway: a broken bundled file should be visible
+            rows.append((name, "?", "?", f"INVALID: {one_line(err)}"))
+    _table(("scenario", "N", "integrator", "description"), rows)
+
+
+def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
+    """Left-aligned columns; the last column is left free to run long."""
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header) - 1)]
+    for row in [header, *rows]:
+        cells = [cell.ljust(width) for cell, width in zip(row[:-1], widths, strict=True)]
+        click.echo("  ".join([*cells, row[-1]]).rstrip())

@@ -1,0 +1,129 @@
+"""``orbitsim plot``: orbits on the x-y plane and |dE/E| against time, in one figure."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from orbitsim.cli.errors import fail, reports_errors
+from orbitsim.cli.options import force_option, trace_argument
+
+#: Samples read for the orbit panel at most (strided); enough for a smooth curve.
+MAX_PLOT_SAMPLES = 4000
+#: Up to this many bodies each gets a track; beyond it, the last sample is drawn as points.
+MAX_TRACKS = 100
+#: Bodies named in the legend at most.
+MAX_LEGEND = 12
+
+
+@click.command("plot")
+@trace_argument()
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="Figure file; the format follows the suffix (.png, .pdf, .svg). Default: the trace's "
+                   "name with .png. Example: -o orbit.png")
+@force_option()
+@reports_errors
+def command(trace: str, output: str | None, force: bool) -> None:
+    """Plot TRACE.h5: orbits projected on x-y, and |dE/E| against time on a log axis.
+
+    \b
+    Examples:
+      orbitsim plot two_body_circular.h5
+      orbitsim plot run.h5 -o run.pdf --force
+    """
+    from orbitsim.io.trace import open_trace_summary
+
+    summary = open_trace_summary(trace)  # checks the format before anything is drawn
+    target = Path(output) if output is not None else Path(trace).with_suffix(".png")
+    if target.exists() and not force:
+        fail(f"{target}: figure already exists; use --force to overwrite it")
+    if not target.parent.is_dir():
+        fail(f"{target}: directory {target.parent} does not exist")
+    data = _read(trace, summary)
+    _draw(data, summary["attrs"], target)
+    click.echo(f"wrote {target}")
+
+
+def _read(path: str, summary: dict[str, Any]) -> dict[str, Any]:
+    """The small series in full, positions strided to at most :data:`MAX_PLOT_SAMPLES`."""
+    import h5py
+    import numpy as np
+
+    with h5py.File(path, "r") as f:
+        data = {"time": f["time"][()], "energy_error": f["energy_error"][()],
+                "names": list(f["bodies/names"].asstr()[()]), "positions": None}
+        n = summary["n_samples"]
+        if "positions" in f and n:
+            stride = max(1, -(-n // MAX_PLOT_SAMPLES))
+            rows = np.arange(0, n, stride)
+            if rows[-1] != n - 1:
+                rows = np.append(rows, n - 1)  # always show where the run ended
+            bodies = f["positions"].shape[1]
+            if bodies > MAX_TRACKS:
+                data["positions"] = f["positions"][n - 1 : n, :, :2]
+            else:
+                data["positions"] = f["positions"][rows, :, :2]
+    return data
+
+
+def _units(attrs: dict[str, Any]) -> tuple[str, str]:
+    from orbitsim.units import UNIT_SYSTEMS
+
+    system = UNIT_SYSTEMS.get(str(attrs.get("units", "")))
+    return (system.length, system.time) if system else ("length", "time")
+
+
+def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only: no display needed, and no GUI toolkit imported
+    import matplotlib.pyplot as plt
+
+    length, time_unit = _units(attrs)
+    fig, (ax_orbit, ax_energy) = plt.subplots(1, 2, figsize=(12, 5.5), layout="constrained")
+    _draw_orbits(ax_orbit, data, length)
+    _draw_energy(ax_energy, data, time_unit)
+    status = attrs.get("status", "?")
+    title = (f"{attrs.get('scenario_name', target.stem)}: {attrs.get('integrator', '?')}, "
+             f"dt = {attrs.get('dt', float('nan')):.4g} {time_unit}")
+    fig.suptitle(title if status == "complete" else f"{title} ({status})")
+    fig.savefig(target, dpi=120)
+    plt.close(fig)
+
+
+def _draw_orbits(ax: Any, data: dict[str, Any], length: str) -> None:
+    pos = data["positions"]
+    ax.set_xlabel(f"x [{length}]")
+    ax.set_ylabel(f"y [{length}]")
+    if pos is None or pos.shape[0] == 0:
+        ax.text(0.5, 0.5, "positions were not recorded", ha="center", va="center", transform=ax.transAxes)
+        ax.set_title("orbits")
+        return
+    names = data["names"]
+    if pos.shape[0] == 1:  # many bodies: one snapshot
+        ax.plot(pos[0, :, 0], pos[0, :, 1], ".", ms=1.5)
+        ax.set_title(f"positions of {pos.shape[1]} bodies at the last sample")
+    else:
+        for i in range(pos.shape[1]):
+            ax.plot(pos[:, i, 0], pos[:, i, 1], lw=0.8, label=names[i] if i < MAX_LEGEND else None)
+        ax.set_title("orbits projected on x-y")
+        if len(names) <= MAX_LEGEND:
+            ax.legend(loc="best", fontsize="small")
+    ax.set_aspect("equal", adjustable="datalim")
+
+
+def _draw_energy(ax: Any, data: dict[str, Any], time_unit: str) -> None:
+    import numpy as np
+
+    t, err = data["time"], np.abs(data["energy_error"])
+    shown = err > 0  # the first sample (and any exact one) has no place on a log axis
+    ax.set_xlabel(f"time [{time_unit}]")
+    ax.set_ylabel("|dE/E|")
+    ax.set_title("relative energy error")
+    if not np.any(shown):
+        ax.text(0.5, 0.5, "|dE/E| = 0 at every sample", ha="center", va="center", transform=ax.transAxes)
+        return
+    ax.semilogy(t[shown], err[shown], lw=0.8)
+    ax.grid(True, which="both", alpha=0.3)

@@ -1,0 +1,214 @@
+"""``orbitsim run``: run a scenario and write its HDF5 energy trace."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from typing import Any
+
+import click
+
+from orbitsim.cli.errors import fail, reports_errors, warn
+from orbitsim.cli.options import (
+    FINITE_POSITIVE,
+    force_option,
+    output_option,
+    quiet_option,
+    threads_option,
+)
+
+#: Scenario keys an option overrides: errors about them name the option instead of the file.
+_OPTION_FOR_KEY = {"integrator": "--integrator", "dt": "--dt", "steps": "--steps", "t_end": "--t-end",
+                   "every": "--every", "output.every": "--every", "interval": "--interval",
+                   "output.interval": "--interval", "output.checkpoint.every": "--checkpoint-every",
+                   "output.checkpoint.seconds": "--checkpoint-seconds"}
+#: Options that would change what an extended run computes (``--from`` keeps the stored ones).
+_FIXED_BY_FROM = ("dt", "every", "interval", "positions")
+
+
+@click.command("run")
+@click.argument("scenario", metavar="[SCENARIO]", required=False)
+@output_option("Trace file to write (default: <scenario name>.h5 in the current directory). "
+               "Example: -o runs/circ.h5")
+@click.option("--integrator", metavar="NAME", default=None,
+              help="Override the integrator (a name or alias from `orbitsim list integrators`). "
+                   "Example: --integrator leapfrog4")
+@click.option("--dt", type=FINITE_POSITIVE, default=None,
+              help="Override the timestep (> 0). With a file that gives t_end the step count is "
+                   "re-derived; with steps it is kept. Example: --dt 0.001")
+@click.option("--steps", type=click.IntRange(min=1), default=None,
+              help="Override the number of whole steps (replaces t_end). Example: --steps 20000")
+@click.option("--t-end", "t_end", type=FINITE_POSITIVE, default=None,
+              help="Override the end time: the whole steps of dt that fit (replaces steps). "
+                   "Example: --t-end 100")
+@click.option("--every", type=click.IntRange(min=1), default=None,
+              help="Sample every K steps (replaces output.interval). Example: --every 100")
+@click.option("--interval", type=FINITE_POSITIVE, default=None,
+              help="Sample every T time units, on the last whole step not past each sample time "
+                   "(replaces output.every). Example: --interval 0.5")
+@click.option("--positions/--no-positions", default=None,
+              help="Record (or not) positions and velocities at every sample. Example: --no-positions")
+@click.option("--checkpoint-every", "checkpoint_every", type=click.IntRange(min=1), default=None,
+              help="Save a checkpoint (for `orbitsim resume` after a kill) once K steps have passed since the "
+                   "last one (sets output.checkpoint.every). Example: --checkpoint-every 100000")
+@click.option("--checkpoint-seconds", "checkpoint_seconds", type=FINITE_POSITIVE, default=None,
+              help="Save a checkpoint once S seconds of wall time have passed since the last one (sets "
+                   "output.checkpoint.seconds). Example: --checkpoint-seconds 600")
+@click.option("--from", "from_trace", metavar="TRACE.h5", default=None,
+              help="Extend the complete run in TRACE.h5 from its final state, bit for bit as one longer run: "
+                   "--steps N more steps, or to --t-end T. Replaces TRACE.h5 (atomically, once done) unless "
+                   "-o names another file. Example: --from out.h5 --steps 100000")
+@threads_option()
+@force_option()
+@quiet_option()
+@reports_errors
+def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | None,
+            steps: int | None, t_end: float | None, every: int | None, interval: float | None,
+            positions: bool | None, checkpoint_every: int | None, checkpoint_seconds: float | None,
+            from_trace: str | None, threads: int | None, force: bool, quiet: bool) -> None:
+    """Run SCENARIO (a YAML file or a bundled name) and write its HDF5 trace.
+
+    Options override the file. Prints a summary: steps, wall time, steps/s, max |dE/E|. A
+    progress bar appears on stderr for runs longer than about a second (not with -q, nor when
+    stderr is not a terminal). An existing output file is never replaced without --force.
+    Ctrl-C or SIGTERM stop the run and keep every sample taken so far (status "interrupted");
+    `orbitsim resume OUT` continues it. With output.checkpoint (or --checkpoint-every/-seconds)
+    even a hard kill can be resumed; --from TRACE.h5 extends a complete run (SCENARIO optional).
+
+    \b
+    Exit codes: 0 complete, 2 bad input, 3 diverged, 130 SIGINT, 143 SIGTERM, 1 other failure.
+
+    \b
+    Examples:
+      orbitsim run two_body_circular
+      orbitsim run my_system.yaml -o out.h5 --integrator leapfrog4 --dt 0.001 --t-end 50
+      orbitsim run plummer_1k --steps 100 --every 10 --force -q
+      orbitsim run long.yaml -o long.h5 --checkpoint-seconds 600
+      orbitsim run --from long.h5 --steps 50000
+    """
+    from orbitsim.scenario import load_scenario
+
+    for first, second in (("steps", "t_end"), ("every", "interval")):
+        if locals()[first] is not None and locals()[second] is not None:
+            raise click.UsageError(f"give only one of --{first} or --{second.replace('_', '-')}")
+    checkpoints = {"checkpoint_every": checkpoint_every, "checkpoint_seconds": checkpoint_seconds}
+    if from_trace is not None:
+        fixed = {"dt": dt, "every": every, "interval": interval, "positions": positions}
+        _extend(from_trace, scenario, output, integrator, steps, t_end, checkpoints, threads, force, quiet, fixed)
+        return
+    if scenario is None:
+        raise click.UsageError("missing argument 'SCENARIO' (or give --from TRACE.h5 to extend a run)")
+    loaded = load_scenario(scenario)
+    overrides = {"integrator": integrator, "dt": dt, "steps": steps, "t_end": t_end, "every": every,
+                 "interval": interval, "record_positions": positions, **checkpoints}
+    chosen = _apply_overrides(loaded, overrides)
+    execute(chosen, output, force=force, threads=threads, quiet=quiet)
+
+
+def execute(scenario: Any, output: Any, *, force: bool, threads: int | None, quiet: bool, start: Any = None) -> None:
+    """Run (or continue, from ``start``) with a progress bar, then report and exit like ``run``."""
+    from orbitsim.runner import run_scenario
+
+    if not quiet:
+        for note in scenario.notes():
+            warn(note)
+    bar = _ProgressBar(scenario.name) if not quiet and _stderr_is_terminal() else None
+    try:
+        summary = run_scenario(scenario, output, force=force, progress=bar, threads=threads, start=start)
+    finally:
+        if bar is not None:
+            bar.close()
+    _report(summary, scenario, quiet)
+
+
+def _extend(source: str, scenario: str | None, output: str | None, integrator: str | None, steps: int | None,
+            t_end: float | None, checkpoints: dict[str, Any], threads: int | None, force: bool, quiet: bool,
+            fixed: dict[str, Any]) -> None:
+    """``run --from``: the stored scenario, longer, continued from the trace's final state."""
+    from orbitsim.checkpoint import prepare_extension
+    from orbitsim.scenario import load_scenario
+
+    given = [f"--{name}" for name, value in fixed.items() if value is not None]
+    if given:
+        raise click.UsageError(f"--from continues the stored run, whose settings are fixed: drop {', '.join(given)}")
+    if steps is None and t_end is None:
+        raise click.UsageError("--from needs --steps N (more steps) or --t-end T (the new end time)")
+    plan = prepare_extension(source, steps=steps, t_end=t_end, output=output, integrator=integrator,
+                             scenario=load_scenario(scenario) if scenario is not None else None, force=force)
+    chosen = _apply_overrides(plan.scenario, checkpoints)
+    execute(chosen, plan.output, force=force, threads=threads, quiet=quiet, start=plan.start)
+
+
+def _apply_overrides(scenario: Any, overrides: dict[str, Any]) -> Any:
+    """The scenario with the options applied; a bad value is blamed on its option."""
+    from orbitsim.scenario import ScenarioError
+
+    if all(v is None for v in overrides.values()):
+        return scenario
+    try:
+        return scenario.with_overrides(**overrides)
+    except ScenarioError as err:
+        option = _OPTION_FOR_KEY.get(err.key or "")
+        if option is None:
+            raise
+        raise click.BadParameter(err.reason, param_hint=f"'{option}'") from None
+
+
+def _report(summary: Any, scenario: Any, quiet: bool) -> None:
+    """Print the summary line; exit non-zero for a diverged or interrupted run."""
+    if not quiet:
+        rate = f"{summary.steps_per_s:,.0f} steps/s" if math.isfinite(summary.steps_per_s) else "- steps/s"
+        end = f"t = {summary.end_time:.10g}" if summary.samples else "no samples"
+        click.echo(f"{summary.name}: {summary.status}, {summary.steps_done} of {summary.steps_requested} steps "
+                   f"in {summary.wall_time_s:.3g} s ({rate}), max |dE/E| = {summary.max_abs_energy_error:.3g}, "
+                   f"{summary.samples} samples to {end} -> {summary.output}")
+    if summary.status == "diverged":
+        fail(f"run diverged: {summary.message}; samples up to the last finite one are in {summary.output}",
+             summary.exit_code)
+    if summary.status == "interrupted":
+        hint = f"; continue with `orbitsim resume {summary.output}`" if summary.resumable else ""
+        fail(f"{summary.message}; the {summary.samples} samples taken are in {summary.output}{hint}",
+             summary.exit_code)
+
+
+def _stderr_is_terminal() -> bool:
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):  # replaced or closed stream
+        return False
+
+
+class _ProgressBar:
+    """A one-line progress bar on stderr that appears only once a run has lasted :attr:`DELAY`."""
+
+    DELAY = 1.0  # seconds: short runs should print nothing but their summary
+    WIDTH = 30
+    REDRAW = 0.1  # seconds between redraws
+
+    def __init__(self, label: str) -> None:
+        self.label = label
+        self.start = time.monotonic()
+        self.last_draw = 0.0
+        self.shown = False
+
+    def __call__(self, done: int, total: int) -> None:
+        now = time.monotonic()
+        elapsed = now - self.start
+        if elapsed < self.DELAY or (now - self.last_draw < self.REDRAW and done < total):
+            return
+        self.last_draw = now
+        fraction = done / total if total else 1.0
+        filled = int(fraction * self.WIDTH)
+        eta = elapsed * (1.0 - fraction) / fraction if fraction > 0 else math.inf
+        eta_text = f"{eta:.0f} s left" if math.isfinite(eta) else "..."
+        sys.stderr.write(f"\r{self.label} [{'#' * filled}{'.' * (self.WIDTH - filled)}] {fraction:4.0%} "
+                         f"{done}/{total} steps, {eta_text}   ")
+        sys.stderr.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        """Erase the bar so the summary starts on a clean line."""
+        if self.shown:
+            sys.stderr.write("\r\033[K")
+            sys.stderr.flush()

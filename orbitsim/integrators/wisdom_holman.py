@@ -1,0 +1,378 @@
+"""Wisdom-Holman map (WHFast arrangement): exact Kepler orbits about the star plus planet kicks.
+
+For a dominant central body (body 0) the Hamiltonian splits into Kepler orbits and a small
+interaction (:mod:`orbitsim.integrators.wh_operators`). One step of size dt is
+
+    Jacobi:                    K(dt/2) I(dt) K(dt/2)
+    democratic heliocentric:   K(dt/2) J(dt/2) I(dt) J(dt/2) K(dt/2)
+
+(K: Kepler drift in universal variables, I: interaction kick, J: the heliocentric jump). Its
+error is O(eps dt^2) with eps the planet/star mass ratio, so steps can be hundreds of times larger
+than a leapfrog's at the same accuracy. Second order, symplectic and time-reversible.
+
+The arrangement is exactly REBOUND's WHFast with ``safe_mode = 0`` and
+``keep_unsynchronized = 1`` (see :mod:`orbitsim.reference.wh_pairing`): the closing K(dt/2) of a
+step and the opening K(dt/2) of the next are merged into one K(dt); an output copies the mapping
+state, applies the owed K(dt/2) and the inverse corrector to the copy, and transforms it to
+inertial coordinates. Symplectic correctors (orders 3-17, :mod:`~.wh_correctors`) are applied
+only at those output times and when the map starts.
+
+Internal state (what a checkpoint must save to continue bit for bit)
+--------------------------------------------------------------------
+Between steps the scheme lives in ``work``, not in ``pos``/``vel``:
+
+* ``mapping_positions``, ``mapping_velocities`` (3, N): the corrected Jacobi (or democratic
+  heliocentric) state, column 0 the centre of mass, *after* the kick of the last step, i.e.
+  still owing that step's closing K(dt/2) (phase "lagging");
+* ``phase``: 0 not started (the next call derives the mapping state from ``pos``/``vel``),
+  1 started but no step taken yet (the next drift is dt/2), 2 lagging (the next drift is dt);
+* ``synced_positions``, ``synced_velocities`` (3, N): the inertial state the last
+  synchronisation wrote. At every call the map continues from its internal state only if
+  ``pos``/``vel`` still hold exactly these bits; if anything changed them, it restarts from
+  ``pos``/``vel`` (as REBOUND recomputes Jacobi coordinates when particles were modified).
+
+:func:`internal_state` and :func:`restore_internal_state` copy these arrays out and back.
+``run`` synchronises ``pos``/``vel`` at every recorded sample and at the end of every call (on
+a copy), so the internal state never depends on where outputs fall or how
+:class:`orbitsim.simulation.Simulation` cuts the run into calls: same input, same bits.
+
+Kepler failures
+---------------
+The jitted drift returns a status; on a failure ``run`` sets ``pos``/``vel`` to nan (so
+orbitsim's divergence path stops the run), stores the status, body and step in ``work`` and
+returns ``finite = False``. :func:`failure_message` turns that into one line (used in
+:class:`orbitsim.simulation.SimulationResult`'s message) and :func:`raise_for_failure` raises
+:class:`~orbitsim.physics.kepler.KeplerConvergenceError`.
+
+References
+----------
+.. [1] Wisdom, J. & Holman, M. (1991), "Symplectic maps for the N-body problem", AJ 102, 1528.
+.. [2] Rein, H. & Tamayo, D. (2015), "WHFast: a fast and unbiased implementation of a symplectic
+       Wisdom-Holman integrator for long-term gravitational simulations", MNRAS 452, 376.
+.. [3] Duncan, M. J., Levison, H. F. & Lee, M. H. (1998), AJ 116, 2067 (democratic heliocentric).
+.. [4] Wisdom, J., Holman, M. & Touma, J. (1996), Fields Inst. Commun. 10, 217 (correctors).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from orbitsim._jit import jit
+from orbitsim.integrators.base import IntegratorSpec, record_sample
+from orbitsim.integrators.wh_correctors import CORRECTOR_STAGES, apply_corrector
+from orbitsim.integrators.wh_operators import (
+    DEMOCRATIC_HELIOCENTRIC,
+    F_BODY,
+    F_PHASE,
+    F_STATUS,
+    F_STEP,
+    JACOBI,
+    W_CONFIG,
+    W_FLAGS,
+    W_IACC,
+    W_IPOS,
+    W_JPOS,
+    W_JVEL,
+    W_KSCRATCH,
+    W_KSTAGE,
+    W_LAST_POS,
+    W_LAST_VEL,
+    W_MU,
+    W_SPOS,
+    W_SVEL,
+    W_WEIGHTS,
+    com_drift,
+    from_inertial,
+    interaction_kick,
+    jump,
+    to_inertial_pos,
+    to_inertial_vel,
+)
+from orbitsim.integrators.wh_settings import COORDINATE_IDS, SETTINGS, validate_settings
+from orbitsim.physics.coordinates import jacobi_weights
+from orbitsim.physics.kepler import (
+    KEPLER_OK,
+    KEPLER_SCRATCH_ROWS,
+    KeplerConvergenceError,
+    describe_status,
+    kepler_drift_bodies,
+)
+
+__all__ = [
+    "SETTINGS",
+    "SPEC",
+    "KeplerConvergenceError",
+    "failure_message",
+    "internal_state",
+    "make_work",
+    "raise_for_failure",
+    "restore_internal_state",
+    "run",
+    "step",
+    "validate_settings",
+]
+
+SPEC = IntegratorSpec(
+    name="wisdom_holman",
+    aliases=("wh",),
+    order=2,
+    symplectic=True,
+    reversible=True,
+    force_evals=1,
+    work_slots=0,
+    fsal=False,
+    summary="Wisdom-Holman map (REBOUND WHFast arrangement): Kepler drifts about body 0 plus planet "
+    "kicks; Jacobi or democratic heliocentric coordinates, optional symplectic correctors",
+    reference="Wisdom & Holman (1991), AJ 102, 1528; Rein & Tamayo (2015), MNRAS 452, 376 (WHFast); "
+    "Wisdom, Holman & Touma (1996), Fields Inst. Commun. 10, 217 (correctors)",
+    module=__name__,
+)
+
+PHASE_UNSET = 0
+PHASE_SYNCED = 1
+PHASE_LAGGING = 2
+
+
+def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
+    """Build the ``work`` tuple (mapping state, scratch, constants) for masses ``m`` (N,).
+
+    Raises ValueError for invalid settings or a central body without mass (``m[0] <= 0``).
+    """
+    config = validate_settings(settings)
+    m = np.ascontiguousarray(m, dtype=np.float64)
+    n = m.shape[0]
+    if n < 1 or not m[0] > 0.0:
+        raise ValueError("wisdom_holman needs a central body: masses[0] must be > 0")
+    coordinates = COORDINATE_IDS[config["coordinates"]]
+    if coordinates == JACOBI:
+        mu = G * np.cumsum(m)  # G M_i, M_i summed left to right
+    else:
+        mu = np.full(n, G * m[0])
+    stage_a, stage_b = CORRECTOR_STAGES[config["corrector"]]
+    flags = np.zeros(4, dtype=np.int64)
+    flags[F_PHASE] = PHASE_UNSET
+    state = tuple(np.zeros((3, n)) for _ in range(8))
+    return (
+        *state,
+        jacobi_weights(m),
+        np.ascontiguousarray(mu),
+        stage_a.copy(),
+        stage_b.copy(),
+        flags,
+        np.array([coordinates, config["corrector"]], dtype=np.int64),
+        np.zeros((KEPLER_SCRATCH_ROWS, n)),
+        np.zeros(n, dtype=np.int64),
+    )
+
+
+@jit
+def _state_changed(pos, vel, work):
+    """True unless ``pos``, ``vel`` hold exactly the bits of the last synchronisation."""
+    last_pos = work[W_LAST_POS]
+    last_vel = work[W_LAST_VEL]
+    for c in range(3):
+        for i in range(pos.shape[1]):
+            if pos[c, i] != last_pos[c, i] or vel[c, i] != last_vel[c, i]:
+                return True
+    return False
+
+
+@jit
+def _remember(pos, vel, work):
+    work[W_LAST_POS][:, :] = pos
+    work[W_LAST_VEL][:, :] = vel
+
+
+@jit
+def _start(pos, vel, m, force, dt, work):
+    """Mapping state from the inertial ``pos``, ``vel``, then the corrector C; returns (status, body)."""
+    jpos = work[W_JPOS]
+    jvel = work[W_JVEL]
+    from_inertial(pos, vel, m, work[W_WEIGHTS], work[W_CONFIG][0], jpos, jvel)
+    _remember(pos, vel, work)
+    flags = work[W_FLAGS]
+    flags[:] = 0
+    flags[F_PHASE] = PHASE_SYNCED
+    return apply_corrector(jpos, jvel, m, force, dt, 1.0, work)
+
+
+@jit
+def _synchronize(pos, vel, m, force, dt, work):
+    """Inertial state at the current step into ``pos``, ``vel``, from a copy of the mapping state."""
+    if work[W_FLAGS][F_PHASE] != PHASE_LAGGING:
+        return KEPLER_OK, 0  # no step since the start: pos, vel still hold the start state
+    spos = work[W_SPOS]
+    svel = work[W_SVEL]
+    spos[:, :] = work[W_JPOS]
+    svel[:, :] = work[W_JVEL]
+    half = 0.5 * dt
+    status, body = kepler_drift_bodies(spos, svel, work[W_MU], half, 1, work[W_KSCRATCH], work[W_KSTAGE])
+    if status != KEPLER_OK:
+        return status, body
+    com_drift(spos, svel, half)
+    status, body = apply_corrector(spos, svel, m, force, dt, -1.0, work)
+    if status != KEPLER_OK:
+        return status, body
+    coordinates = work[W_CONFIG][0]
+    to_inertial_pos(spos, m, work[W_WEIGHTS], coordinates, pos)
+    to_inertial_vel(svel, m, work[W_WEIGHTS], coordinates, vel)
+    _remember(pos, vel, work)
+    return KEPLER_OK, 0
+
+
+@jit
+def _fail(pos, vel, work, status, body, step_index):
+    """Record a Kepler failure and poison the state so the divergence path reports it."""
+    flags = work[W_FLAGS]
+    flags[F_STATUS] = status
+    flags[F_BODY] = body
+    flags[F_STEP] = step_index
+    flags[F_PHASE] = PHASE_UNSET
+    pos[:, :] = np.nan
+    vel[:, :] = np.nan
+
+
+@jit
+def _ensure_started(pos, vel, m, force, dt, work, n_done):
+    """Continue from the internal state, or (re)start from ``pos``/``vel``; False on failure."""
+    if work[W_FLAGS][F_PHASE] != PHASE_UNSET and not _state_changed(pos, vel, work):
+        return True
+    status, body = _start(pos, vel, m, force, dt, work)
+    if status != KEPLER_OK:
+        _fail(pos, vel, work, status, body, n_done)
+        return False
+    return True
+
+
+@jit
+def step(pos, vel, acc, m, force, dt, work):
+    """One step, ``pos``/``vel`` in and out (``acc`` is not used); same bits as :func:`run`."""
+    if not _ensure_started(pos, vel, m, force, dt, work, -1):
+        return
+    _, status, body = _advance_to(1, 0, m, force, dt, work)
+    if status == KEPLER_OK:
+        status, body = _synchronize(pos, vel, m, force, dt, work)
+    if status != KEPLER_OK:
+        _fail(pos, vel, work, status, body, -1)
+
+
+@jit
+def _advance_to(target, n_done, m, force, dt, work):
+    """Steps of the mapping state until ``n_done == target``; returns ``(n_done, status, body)``.
+
+    One step: K(h) (h = dt/2 after a start, else dt, merging the owed closing half drift),
+    [J(dt/2)], I(dt), [J(dt/2)]; the mapping state then owes K(dt/2) (phase lagging). The arrays
+    are taken out of ``work`` once per call and the step is written out here, not in a helper
+    called per step, since every array-taking call costs a reference-count round trip.
+    """
+    jpos, jvel = work[W_JPOS], work[W_JVEL]
+    flags = work[W_FLAGS]
+    coordinates = work[W_CONFIG][0]
+    heliocentric = coordinates == DEMOCRATIC_HELIOCENTRIC
+    weights, mu = work[W_WEIGHTS], work[W_MU]
+    ipos, acc = work[W_IPOS], work[W_IACC]
+    ks, kstage = work[W_KSCRATCH], work[W_KSTAGE]
+    G = force[0]
+    eps2 = force[1]
+    half = 0.5 * dt
+    while n_done < target:
+        h = half if flags[F_PHASE] == PHASE_SYNCED else dt
+        status, body = kepler_drift_bodies(jpos, jvel, mu, h, 1, ks, kstage)
+        if status != KEPLER_OK:
+            return n_done, status, body
+        for c in range(3):
+            jpos[c, 0] += h * jvel[c, 0]  # the centre of mass drifts
+        if heliocentric:
+            jump(jpos, jvel, m, half)
+        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc)
+        if heliocentric:
+            jump(jpos, jvel, m, half)
+        flags[F_PHASE] = PHASE_LAGGING
+        n_done += 1
+    return n_done, KEPLER_OK, 0
+
+
+@jit
+def run(state, force, dt, work, t0, n_done, targets, record, out):
+    """Fixed-dt loop (contract in :mod:`orbitsim.integrators.base`); synchronises only at outputs."""
+    pos, vel, _acc, m = state
+    if not _ensure_started(pos, vel, m, force, dt, work, n_done):
+        return 0, n_done, False
+    synced = n_done
+    written = 0
+    last = targets.shape[0] - 1
+    for k in range(targets.shape[0]):
+        n_done, status, body = _advance_to(targets[k], n_done, m, force, dt, work)
+        if status != KEPLER_OK:
+            _fail(pos, vel, work, status, body, n_done + 1)
+            return written, n_done, False
+        if (record[k] or k == last) and synced != n_done:
+            status, body = _synchronize(pos, vel, m, force, dt, work)
+            if status != KEPLER_OK:
+                _fail(pos, vel, work, status, body, n_done)
+                return written, n_done, False
+            synced = n_done
+        if record[k]:
+            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+                return written, n_done, False
+            written += 1
+    return written, n_done, True
+
+
+_STATE_SLOTS = {
+    "mapping_positions": W_JPOS,
+    "mapping_velocities": W_JVEL,
+    "synced_positions": W_LAST_POS,
+    "synced_velocities": W_LAST_VEL,
+}
+
+
+def internal_state(work: tuple[Any, ...]) -> dict[str, np.ndarray]:
+    """Copies of the arrays a checkpoint must save to continue bit for bit (see module docstring)."""
+    arrays = {name: work[slot].copy() for name, slot in _STATE_SLOTS.items()}
+    arrays["phase"] = np.array([work[W_FLAGS][F_PHASE]], dtype=np.int64)
+    return arrays
+
+
+def restore_internal_state(work: tuple[Any, ...], arrays: Mapping[str, np.ndarray]) -> None:
+    """Put arrays saved by :func:`internal_state` back into ``work`` (in place).
+
+    The inertial ``pos``/``vel`` of the simulation must be restored to ``synced_positions`` and
+    ``synced_velocities`` as well, or the next call restarts the map from them.
+    """
+    missing = sorted((set(_STATE_SLOTS) | {"phase"}) - set(arrays))
+    if missing:
+        raise ValueError(f"wisdom_holman internal state lacks {', '.join(missing)}")
+    for name, slot in _STATE_SLOTS.items():
+        value = np.asarray(arrays[name], dtype=np.float64)
+        if value.shape != work[slot].shape:
+            raise ValueError(
+                f"wisdom_holman internal state {name!r} has shape {value.shape}, expected {work[slot].shape}"
+            )
+        work[slot][...] = value
+    phase = int(np.asarray(arrays["phase"]).reshape(-1)[0])
+    if phase not in (PHASE_UNSET, PHASE_SYNCED, PHASE_LAGGING):
+        raise ValueError(f"wisdom_holman internal state 'phase' must be 0, 1 or 2, got {phase}")
+    flags = work[W_FLAGS]
+    flags[:] = 0
+    flags[F_PHASE] = phase
+
+
+def failure_message(work: tuple[Any, ...]) -> str | None:
+    """One line describing a Kepler failure recorded in ``work``, or None if there was none."""
+    flags = work[W_FLAGS]
+    status = int(flags[F_STATUS])
+    if status == KEPLER_OK:
+        return None
+    step_index = int(flags[F_STEP])
+    return describe_status(status, body=int(flags[F_BODY]), step=step_index if step_index >= 0 else None)
+
+
+def raise_for_failure(work: tuple[Any, ...]) -> None:
+    """Raise :class:`KeplerConvergenceError` if a Kepler failure is recorded in ``work``."""
+    message = failure_message(work)
+    if message is not None:
+        raise KeplerConvergenceError(message)

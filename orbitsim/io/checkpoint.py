@@ -1,0 +1,441 @@
+"""Checkpoint files (``orbitsim.checkpoint``, version 1) and the sample journal beside them.
+
+Why not checkpoint the HDF5 trace itself
+----------------------------------------
+HDF5 changes a file in place: appending samples rewrites dataset headers, chunk-index nodes and
+the partly filled last chunk (whose old copy's space may be reused), and h5py writes that
+metadata whenever its cache decides. A SIGKILL during an append can therefore leave a file that
+does not open, or, worse, one whose *earlier* samples silently changed. No flush discipline makes
+that impossible (measured: of 30 SIGKILLs of an appending writer that flushed and fsynced before
+each checkpoint, 19 left checkpointed rows unreadable or changed; ``docs/checkpoints.md``), so a
+checkpointed run keeps its samples out of HDF5 until it ends:
+
+* ``<OUT>.journal``: the samples as fixed-size little-endian records (:func:`journal_dtype`),
+  only ever appended. Bytes that were fsynced before a checkpoint was published are never
+  touched again, so the prefix a checkpoint names survives any kill; on resume the file is
+  truncated back to that prefix (the samples after it are recomputed, bit for bit).
+* ``<OUT>.ckpt``: a small HDF5 file with the complete state (:class:`Checkpoint`), written to
+  ``<OUT>.ckpt.tmp``, fsynced and renamed over the old one (``os.replace`` is atomic), so at any
+  instant ``<OUT>.ckpt`` is the previous checkpoint or the new one, never a mixture. It names the
+  journal's valid length and the CRC-32 of that prefix, and carries a SHA-256 of its own state
+  arrays: a damaged journal or checkpoint is reported, never resumed from.
+
+When the run ends the journal is converted into the usual trace (``orbitsim.io.trace``), whose
+``checkpoint`` group holds the final state in the same layout, so a finished or interrupted trace
+can be extended or resumed without the side files, which are then deleted.
+
+Layout of a checkpoint (the root of ``<OUT>.ckpt``, or the trace's ``checkpoint`` group)
+-----------------------------------------------------------------------------------------
+Datasets ``pos``, ``vel``, ``acc`` (3, N): the simulation's arrays as it holds them (``acc`` is
+state for first-same-as-last schemes, so it is saved, not recomputed); ``work/0000``, ... every
+array of the integrator's ``work`` (scratch included, so any scheme that keeps state between
+steps, e.g. ``wisdom_holman``'s mapping coordinates, continues exactly), flattened in order, with
+the nesting in the ``work_layout`` attribute. Attributes: see :data:`_COUNTERS` and
+:class:`Checkpoint`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import json
+import os
+import socket
+import time
+import zlib
+from collections.abc import Iterator
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import h5py
+import numpy as np
+
+from orbitsim._version import __version__
+from orbitsim.io.trace import TraceError
+
+__all__ = [
+    "CHECKPOINT_FORMAT",
+    "CHECKPOINT_VERSION",
+    "Checkpoint",
+    "CheckpointError",
+    "Journal",
+    "SimState",
+    "as_chunk",
+    "check_journal",
+    "checkpoint_path",
+    "journal_dtype",
+    "journal_is_locked",
+    "journal_path",
+    "layout_json",
+    "read_checkpoint",
+    "read_checkpoint_group",
+    "state_arrays",
+    "write_checkpoint",
+    "write_checkpoint_group",
+]
+
+CHECKPOINT_FORMAT = "orbitsim.checkpoint"
+CHECKPOINT_VERSION = 1
+#: Integer attributes of a checkpoint, beside the state arrays.
+_COUNTERS = ("steps_done", "steps_requested", "samples_written", "last_sample_step", "journal_bytes",
+             "journal_crc32", "resumes")
+_JOURNAL_BLOCK_BYTES = 8 * 2**20  # read-back block: flat memory for any N
+
+
+class CheckpointError(TraceError):
+    """A checkpoint or journal is missing, damaged, foreign, or does not fit the run."""
+
+
+def checkpoint_path(output: str | os.PathLike) -> Path:
+    """``<OUT>.ckpt``: the checkpoint of the run writing ``OUT``."""
+    return Path(f"{os.fspath(output)}.ckpt")
+
+
+def journal_path(output: str | os.PathLike) -> Path:
+    """``<OUT>.journal``: the append-only samples of the run writing ``OUT``."""
+    return Path(f"{os.fspath(output)}.journal")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SimState:
+    """The arrays a simulation continues from: (3, N) ``pos``, ``vel``, ``acc``, the flattened
+    ``work`` arrays with their nesting (JSON, see :func:`orbitsim.checkpoint.capture_state`)."""
+
+    steps_done: int
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    work: tuple[np.ndarray, ...]
+    work_layout: str
+
+    def digest(self) -> str:
+        """SHA-256 over the step count, the layout and every array's dtype, shape and bytes."""
+        h = hashlib.sha256(f"{self.steps_done}|{self.work_layout}".encode())
+        for arr in (self.pos, self.vel, self.acc, *self.work):
+            h.update(f"{arr.dtype.str}{arr.shape}".encode())
+            h.update(np.ascontiguousarray(arr).tobytes())
+        return h.hexdigest()
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Checkpoint:
+    """A state plus where the run stood: samples written, the journal prefix, the scenario.
+
+    ``last_sample_step`` is -1 before the first sample; the run continues with the planned
+    sample steps after it. ``scenario`` (resolved YAML) is empty in a trace's group, whose root
+    attributes hold it. ``E0``, ``max_abs_energy_error``, ``last_sample_time`` and
+    ``wall_time_s`` only let a resumed run report the same summary as an uninterrupted one;
+    ``written_at`` and ``writer`` (pid and host) are filled in when a checkpoint is read.
+    """
+
+    state: SimState
+    steps_requested: int
+    samples_written: int
+    last_sample_step: int
+    integrator: str
+    scenario_sha256: str
+    scenario: str = ""
+    scenario_name: str = ""
+    scenario_source: str = ""
+    journal_bytes: int = 0
+    journal_crc32: int = 0
+    resumes: int = 0
+    force: bool = False
+    E0: float = float("nan")
+    max_abs_energy_error: float = float("nan")
+    last_sample_time: float = float("nan")
+    wall_time_s: float = 0.0
+    written_at: str = ""
+    writer: str = ""
+
+    @property
+    def steps_done(self) -> int:
+        """Steps integrated at this checkpoint."""
+        return self.state.steps_done
+
+
+def state_arrays(state: SimState) -> dict[str, np.ndarray]:
+    """The datasets of a checkpoint, by name (``work/0000``, ... for the work arrays)."""
+    arrays = {"pos": state.pos, "vel": state.vel, "acc": state.acc}
+    arrays.update({f"work/{i:04d}": arr for i, arr in enumerate(state.work)})
+    return arrays
+
+
+def write_checkpoint_group(group: h5py.Group, ckpt: Checkpoint) -> None:
+    """Write ``ckpt`` into an empty HDF5 group (or a file's root)."""
+    for name, arr in state_arrays(ckpt.state).items():
+        group.create_dataset(name, data=arr)
+    if not ckpt.state.work:
+        group.create_group("work")
+    attrs = {name: int(getattr(ckpt, name)) for name in _COUNTERS}
+    attrs.update(
+        integrator=ckpt.integrator, scenario_sha256=ckpt.scenario_sha256, scenario_name=ckpt.scenario_name,
+        scenario_source=ckpt.scenario_source, work_layout=ckpt.state.work_layout,
+        state_sha256=ckpt.state.digest(), force=bool(ckpt.force), E0=float(ckpt.E0),
+        max_abs_energy_error=float(ckpt.max_abs_energy_error), last_sample_time=float(ckpt.last_sample_time),
+        wall_time_s=float(ckpt.wall_time_s), written_at=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        writer_pid=os.getpid(), writer_host=socket.gethostname(), orbitsim_version=__version__)
+    if ckpt.scenario:
+        attrs["scenario"] = ckpt.scenario
+    for key, value in attrs.items():
+        group.attrs[key] = value
+
+
+def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "") -> Checkpoint:
+    """Read a checkpoint written by :func:`write_checkpoint_group`; verify its state digest.
+
+    Raises
+    ------
+    CheckpointError
+        If a field is missing or malformed, or the arrays do not match their digest.
+    """
+    try:
+        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
+        work_group = group["work"]
+        work = tuple(work_group[name][()] for name in sorted(work_group))
+        state = SimState(steps_done=int(attrs["steps_done"]), pos=group["pos"][()], vel=group["vel"][()],
+                         acc=group["acc"][()], work=work, work_layout=str(attrs["work_layout"]))
+        counters = {name: int(attrs[name]) for name in _COUNTERS if name != "steps_done"}
+        ckpt = Checkpoint(
+            state=state, integrator=str(attrs["integrator"]), scenario_sha256=str(attrs["scenario_sha256"]),
+            scenario=str(attrs.get("scenario", scenario)), scenario_name=str(attrs.get("scenario_name", "")),
+            scenario_source=str(attrs.get("scenario_source", "")),
+            force=bool(attrs["force"]), E0=float(attrs["E0"]),
+            max_abs_energy_error=float(attrs["max_abs_energy_error"]),
+            last_sample_time=float(attrs["last_sample_time"]), wall_time_s=float(attrs["wall_time_s"]),
+            written_at=str(attrs.get("written_at", "")),
+            writer=f"pid {attrs.get('writer_pid', '?')} on {attrs.get('writer_host', '?')}", **counters)
+        expected = str(attrs["state_sha256"])
+    except (KeyError, ValueError, TypeError, OSError) as err:
+        raise CheckpointError(f"{where}: damaged checkpoint ({type(err).__name__}: {err})") from None
+    if state.digest() != expected:
+        raise CheckpointError(f"{where}: damaged checkpoint (its state does not match its SHA-256)")
+    return ckpt
+
+
+def write_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
+    """Publish ``ckpt`` at ``path`` atomically: write ``<path>.tmp``, fsync, rename, fsync the directory.
+
+    A kill at any instant leaves either the previous file or this one at ``path``.
+    """
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with h5py.File(tmp, "w") as f:
+        f.attrs["format"] = CHECKPOINT_FORMAT
+        f.attrs["format_version"] = CHECKPOINT_VERSION
+        write_checkpoint_group(f, ckpt)
+    _fsync(tmp)
+    os.replace(tmp, path)
+    _fsync(path.parent, best_effort=True)
+
+
+def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
+    """Read and verify a checkpoint file.
+
+    Raises
+    ------
+    CheckpointError
+        If the file is missing, not an orbitsim checkpoint, of another version, or damaged.
+    """
+    where = os.fspath(path)
+    if not os.path.isfile(where):
+        raise CheckpointError(f"{where}: no such checkpoint file")
+    try:
+        with h5py.File(where, "r") as f:
+            fmt = f.attrs.get("format")
+            fmt = fmt.decode() if isinstance(fmt, bytes) else fmt
+            if fmt != CHECKPOINT_FORMAT:
+                raise CheckpointError(f"{where}: not an orbitsim checkpoint (format {fmt!r})")
+            version = f.attrs.get("format_version")
+            if version != CHECKPOINT_VERSION:
+                raise CheckpointError(f"{where}: unsupported checkpoint format_version {version!r} "
+                                      f"(supported: {CHECKPOINT_VERSION})")
+            return read_checkpoint_group(f, where)
+    except OSError as err:
+        raise CheckpointError(f"{where}: damaged or unreadable checkpoint ({err})") from None
+
+
+def _datasync(fd: int) -> None:
+    """Make a file's data (and the size needed to read it back) durable: ``fdatasync`` where the OS
+    has it, which skips the timestamps ``fsync`` would also write."""
+    getattr(os, "fdatasync", os.fsync)(fd)
+
+
+def _fsync(path: Path, *, best_effort: bool = False) -> None:
+    """fsync a file or directory (directories cannot be fsynced everywhere)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError:
+        if not best_effort:
+            raise
+
+
+def journal_dtype(n_bodies: int, record_positions: bool) -> np.dtype:
+    """One journal record: a sample's time, step, energies, momenta and, optionally, its state."""
+    fields: list[tuple[Any, ...]] = [("time", "<f8"), ("step", "<i8"), ("kinetic", "<f8"), ("potential", "<f8"),
+                                     ("momentum", "<f8", (3,)), ("angular_momentum", "<f8", (3,))]
+    if record_positions:
+        fields += [("positions", "<f8", (n_bodies, 3)), ("velocities", "<f8", (n_bodies, 3))]
+    return np.dtype(fields)
+
+
+class Journal:
+    """The append-only sample file of one run, locked against a second writer.
+
+    Parameters
+    ----------
+    path : path
+        ``<OUT>.journal``.
+    dtype : numpy.dtype
+        Record type (:func:`journal_dtype`).
+    keep_bytes, crc32 : int
+        0 to start a new journal (truncating any file there); otherwise the valid prefix named
+        by a checkpoint and its CRC-32: the file must hold that prefix intact, and is cut back
+        to it.
+
+    Raises
+    ------
+    CheckpointError
+        If another live process holds the journal, or its prefix is short or damaged.
+    """
+
+    def __init__(self, path: str | os.PathLike, dtype: np.dtype, *, keep_bytes: int = 0, crc32: int = 0) -> None:
+        self.path = Path(path)
+        self.dtype = dtype
+        if keep_bytes % dtype.itemsize:
+            raise CheckpointError(f"{self.path}: checkpoint names {keep_bytes} bytes, not a whole number of "
+                                  f"{dtype.itemsize}-byte records")
+        exists = self.path.exists()
+        if keep_bytes and not exists:
+            raise CheckpointError(f"{self.path}: the sample journal the checkpoint needs is missing")
+        self._fh = open(self.path, "r+b" if exists else "w+b")  # held open (and locked) for the run
+        try:
+            _lock(self._fh, self.path)
+            _check_prefix(self._fh, self.path, keep_bytes, crc32)
+            self._fh.truncate(keep_bytes)
+            self._fh.seek(keep_bytes)
+        except BaseException:
+            self._fh.close()
+            raise
+        self.bytes = keep_bytes
+        self.crc32 = crc32
+
+    @property
+    def records(self) -> int:
+        """Samples in the journal."""
+        return self.bytes // self.dtype.itemsize
+
+    def append(self, chunk: Any) -> None:
+        """Append the samples of a chunk (``time``, ``step``, ... attributes, as a SampleChunk)."""
+        rec = np.empty(len(chunk.time), dtype=self.dtype)
+        for name in self.dtype.names:
+            rec[name] = getattr(chunk, name)
+        data = rec.tobytes()
+        self._fh.write(data)
+        self.bytes += len(data)
+        self.crc32 = zlib.crc32(data, self.crc32)
+
+    def sync(self) -> None:
+        """Make every appended byte durable (before a checkpoint names it)."""
+        self._fh.flush()
+        _datasync(self._fh.fileno())
+
+    def chunks(self, stop: int | None = None) -> Iterator[SimpleNamespace]:
+        """Read the first ``stop`` records (default all) back, block by block, as chunk-like objects."""
+        self._fh.flush()
+        total = self.records if stop is None else stop
+        per_block = max(1, _JOURNAL_BLOCK_BYTES // self.dtype.itemsize)
+        with open(self.path, "rb") as fh:
+            for start in range(0, total, per_block):
+                rec = np.fromfile(fh, dtype=self.dtype, count=min(per_block, total - start))
+                yield as_chunk({name: rec[name] for name in self.dtype.names})
+
+    def close(self, *, delete: bool = False) -> None:
+        """Close (releasing the lock); ``delete`` removes the file first, while still locked."""
+        if self._fh.closed:
+            return
+        if delete:
+            self.path.unlink(missing_ok=True)
+        self._fh.close()
+
+
+def check_journal(path: str | os.PathLike, keep_bytes: int, crc32: int) -> None:
+    """Check, read-only, that the journal at ``path`` holds the prefix a checkpoint names.
+
+    Raises
+    ------
+    CheckpointError
+        If the journal is missing, shorter than ``keep_bytes`` or does not match ``crc32``.
+    """
+    try:
+        with open(path, "rb") as fh:
+            _check_prefix(fh, Path(path), keep_bytes, crc32)
+    except FileNotFoundError:
+        raise CheckpointError(f"{path}: the sample journal the checkpoint needs is missing") from None
+
+
+def _check_prefix(fh: Any, path: Path, keep_bytes: int, crc32: int) -> None:
+    size = os.fstat(fh.fileno()).st_size
+    if size < keep_bytes:
+        raise CheckpointError(f"{path}: damaged journal ({size} bytes, the checkpoint needs {keep_bytes})")
+    crc = 0
+    fh.seek(0)
+    left = keep_bytes
+    while left:
+        block = fh.read(min(left, _JOURNAL_BLOCK_BYTES))
+        if not block:
+            raise CheckpointError(f"{path}: damaged journal (short read)")
+        crc = zlib.crc32(block, crc)
+        left -= len(block)
+    if crc != crc32:
+        raise CheckpointError(f"{path}: damaged journal (its samples do not match the checkpoint's CRC-32)")
+
+
+def as_chunk(arrays: dict[str, np.ndarray]) -> SimpleNamespace:
+    """A chunk-like object for :meth:`orbitsim.io.trace.TraceWriter.append` (energy = T + U)."""
+    arrays.setdefault("positions", None)
+    arrays.setdefault("velocities", None)
+    return SimpleNamespace(energy=arrays["kinetic"] + arrays["potential"], **arrays)
+
+
+def _lock(fh: Any, path: Path) -> None:
+    """An exclusive advisory lock, dropped by the OS when the holder dies (SIGKILL included)."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: no advisory locks; a concurrent resume is then the user's lookout
+        return
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        raise CheckpointError(f"{path}: another orbitsim process is writing this run; stop it first") from None
+
+
+def journal_is_locked(path: str | os.PathLike) -> bool:
+    """Whether a live process holds the journal at ``path`` (False if there is none)."""
+    try:
+        import fcntl
+    except ImportError:
+        return False
+    try:
+        fh = open(path, "rb")
+    except OSError:
+        return False
+    with fh:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        with contextlib.suppress(OSError):
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    return False
+
+
+def layout_json(layout: Any) -> str:
+    """Canonical JSON for a work layout (see :func:`orbitsim.checkpoint.capture_state`)."""
+    return json.dumps(layout, separators=(",", ":"))

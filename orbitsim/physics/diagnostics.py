@@ -1,0 +1,177 @@
+"""Conserved quantities of the N-body problem (jitted, exact arithmetic).
+
+* kinetic energy   T = sum_i m_i |v_i|^2 / 2
+* potential energy U = - sum_{i<j} G m_i m_j / sqrt(|x_i - x_j|^2 + eps^2)
+* total energy     E = T + U
+* momentum         P = sum_i m_i v_i
+* angular momentum L = sum_i m_i x_i x v_i   (about the origin)
+* centre of mass   X = sum_i m_i x_i / sum_i m_i
+
+Arrays are ``(3, N)`` as in :mod:`orbitsim.physics.gravity`. The potential is summed per row i
+(a private partial for each row), then the partials are added in row order: the result is
+deterministic and the same on any number of threads.
+
+The potential is exact arithmetic, so its j-sum cannot be vectorised (that would reorder the
+additions). What can be is the terms: long rows compute ``m_j / r_ij`` a block of
+:data:`TERM_BLOCK` at a time into a buffer, where the square roots and divisions run as vector
+instructions (each is correctly rounded, so a lane gives the bits of the scalar operation), and
+then add the buffer in order. Same terms, same order of addition: the same bits as the plain loop,
+several times faster (benchmarks/README.md). The parallel version deals the rows out in strides,
+so every thread gets a fair share of the triangle rather than its long or its short end.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import prange
+
+from orbitsim._jit import jit, jit_parallel_exact
+
+#: Above this N the O(N^2) potential runs its rows in parallel (its rows are independent).
+PARALLEL_POTENTIAL_MIN_N = 384
+
+#: Terms per buffered block: 2 KiB, which stays in L1 next to the four position/mass streams.
+TERM_BLOCK = 256
+
+#: From this N on the serial potential buffers its terms (below it a row is too short for the
+#: vector loop to pay for itself, and small runs sample often: they keep the allocation-free loop).
+BUFFERED_POTENTIAL_MIN_N = 64
+
+#: Row strides of the parallel potential: chunk c takes rows c, c + S, c + 2S, ... so the chunks
+#: hold nearly equal shares of the N(N-1)/2 terms whatever the thread count.
+POTENTIAL_STRIDES = 64
+
+
+@jit
+def kinetic_energy(vel, m):
+    """Kinetic energy sum m v^2 / 2 of velocities ``vel`` (3, N) and masses ``m`` (N,)."""
+    total = 0.0
+    for i in range(m.shape[0]):
+        total += 0.5 * m[i] * (vel[0, i] * vel[0, i] + vel[1, i] * vel[1, i] + vel[2, i] * vel[2, i])
+    return total
+
+
+@jit
+def _potential_row(pos, m, eps2, i):
+    x = pos[0]
+    y = pos[1]
+    z = pos[2]
+    row = 0.0
+    for j in range(i + 1, m.shape[0]):
+        dx = x[j] - x[i]
+        dy = y[j] - y[i]
+        dz = z[j] - z[i]
+        row += m[j] / np.sqrt(dx * dx + dy * dy + dz * dz + eps2)
+    return m[i] * row
+
+
+@jit
+def _potential_row_buffered(pos, m, eps2, i, buf):
+    """:func:`_potential_row` with its terms computed a block at a time into ``buf`` (same bits)."""
+    x = pos[0]
+    y = pos[1]
+    z = pos[2]
+    xi = x[i]
+    yi = y[i]
+    zi = z[i]
+    n = m.shape[0]
+    row = 0.0
+    for start in range(i + 1, n, TERM_BLOCK):
+        stop = min(n, start + TERM_BLOCK)
+        for j in range(start, stop):  # no reduction here: vectorises without reordering anything
+            dx = x[j] - xi
+            dy = y[j] - yi
+            dz = z[j] - zi
+            buf[j - start] = m[j] / np.sqrt(dx * dx + dy * dy + dz * dz + eps2)
+        for k in range(stop - start):  # the additions, in the order of the plain loop
+            row += buf[k]
+    return m[i] * row
+
+
+@jit
+def _potential_serial(pos, m, G, eps2):
+    n = m.shape[0]
+    total = 0.0
+    if n < BUFFERED_POTENTIAL_MIN_N:
+        for i in range(n):
+            total += _potential_row(pos, m, eps2, i)
+    else:
+        buf = np.empty(TERM_BLOCK)  # one small allocation per evaluation, none per row
+        for i in range(n):
+            total += _potential_row_buffered(pos, m, eps2, i, buf)
+    return -G * total
+
+
+@jit_parallel_exact
+def _potential_parallel(pos, m, G, eps2, rows):
+    n = m.shape[0]
+    # One buffer per chunk, allocated before the parallel loop (an allocation inside a prange
+    # body may be hoisted out of it by Numba and then shared between threads).
+    bufs = np.empty((POTENTIAL_STRIDES, TERM_BLOCK))
+    for c in prange(POTENTIAL_STRIDES):
+        for i in range(c, n, POTENTIAL_STRIDES):
+            rows[i] = _potential_row_buffered(pos, m, eps2, i, bufs[c])
+    total = 0.0
+    for i in range(n):
+        total += rows[i]
+    return -G * total
+
+
+@jit
+def potential_energy(pos, m, G, eps2, rows):
+    """Softened potential energy; ``rows`` (N,) is scratch for the parallel row partials.
+
+    Pass an empty ``rows`` for small N (serial). Serial and parallel add the rows in the same
+    order, so they give the same bits.
+    """
+    if rows.shape[0] == 0:
+        return _potential_serial(pos, m, G, eps2)
+    return _potential_parallel(pos, m, G, eps2, rows)
+
+
+@jit
+def momentum_into(vel, m, out):
+    """Total linear momentum into ``out`` (3,)."""
+    for c in range(3):
+        total = 0.0
+        for i in range(m.shape[0]):
+            total += m[i] * vel[c, i]
+        out[c] = total
+
+
+@jit
+def angular_momentum_into(pos, vel, m, out):
+    """Total angular momentum about the origin into ``out`` (3,)."""
+    lx = 0.0
+    ly = 0.0
+    lz = 0.0
+    for i in range(m.shape[0]):
+        lx += m[i] * (pos[1, i] * vel[2, i] - pos[2, i] * vel[1, i])
+        ly += m[i] * (pos[2, i] * vel[0, i] - pos[0, i] * vel[2, i])
+        lz += m[i] * (pos[0, i] * vel[1, i] - pos[1, i] * vel[0, i])
+    out[0] = lx
+    out[1] = ly
+    out[2] = lz
+
+
+@jit
+def centre_of_mass(pos, vel, m):
+    """Centre-of-mass position and velocity, each (3,)."""
+    com_x = np.zeros(3)
+    com_v = np.zeros(3)
+    total = 0.0
+    for i in range(m.shape[0]):
+        total += m[i]
+        for c in range(3):
+            com_x[c] += m[i] * pos[c, i]
+            com_v[c] += m[i] * vel[c, i]
+    if total > 0.0:
+        for c in range(3):
+            com_x[c] /= total
+            com_v[c] /= total
+    return com_x, com_v
+
+
+def potential_rows_scratch(n: int) -> np.ndarray:
+    """Scratch for :func:`potential_energy`: empty (serial) below the parallel threshold."""
+    return np.zeros(n if n >= PARALLEL_POTENTIAL_MIN_N else 0)

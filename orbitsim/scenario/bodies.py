@@ -1,0 +1,308 @@
+"""Bodies of a scenario from its three sources: an explicit list, the DE421 ephemeris, generators.
+
+Sources are read in a fixed order (``ephemeris``, then ``generator``, then ``bodies``), so a body
+given by orbital elements may orbit any body from the ephemeris or a generator, or one listed
+before it. Each body remembers the key path it came from, so a later whole-system check (two
+bodies at one point) can still name the key to fix.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.fields import Fields, describe, join_path
+
+__all__ = ["BodySet", "available_memory", "check_coincident", "read_bodies", "shift_to_barycentre"]
+
+CARTESIAN_KEYS = ("name", "m", "x", "v")
+ELEMENT_KEYS = ("name", "m", "primary", "a", "e", "inc", "Omega", "omega", "M", "f")
+EPHEMERIS_KEYS = ("source", "epoch", "jd", "bodies")
+PLUMMER_KEYS = ("kind", "n", "seed", "total_mass", "scale_radius", "prefix")
+DISC_KEYS = ("kind", "n", "seed", "central_mass", "r_min", "r_max", "e_max", "inc_max", "star", "prefix")
+GENERATOR_KINDS = {"plummer": PLUMMER_KEYS, "disc": DISC_KEYS}
+
+#: Bytes of memory a run needs per body, generously: generator temporaries (~40 doubles), the
+#: scenario's and the simulation's state, force scratch (16 slabs of 3 doubles: gravity.MAX_BLOCKS)
+#: and the resolved-YAML text that is stored in the trace (~250 bytes, held twice).
+BYTES_PER_BODY = 2048
+#: Bytes a run needs whatever N: Python, numba, HDF5 and the bounded sample and write buffers.
+BYTES_FIXED = 512 * 2**20
+
+#: Ephemeris states come in au and days: length and time factors (au -> unit, day -> unit).
+_EPHEMERIS_SCALE = {"au-day-msun": ("au", "day"), "au-yr-msun": ("au", "gyr"), "si": ("m", "s")}
+
+
+@dataclass
+class BodySet:
+    """Bodies collected so far, each with the key path it came from."""
+
+    names: list[str] = field(default_factory=list)
+    masses: list[np.ndarray] = field(default_factory=list)
+    positions: list[np.ndarray] = field(default_factory=list)
+    velocities: list[np.ndarray] = field(default_factory=list)
+    origins: list[str] = field(default_factory=list)
+    _index: dict[str, int] = field(default_factory=dict)
+
+    def add(self, names: list[str], m: Any, x: Any, v: Any, origins: list[str], name_keys: list[str]) -> None:
+        """Append a block of bodies; a name used before is an error at its ``name_keys`` entry."""
+        for name, key in zip(names, name_keys, strict=True):
+            if name in self._index:
+                first = self.origins[self._index[name]]
+                raise ScenarioError(f"duplicate body name {name!r} (already used by {first}); names must be "
+                                    "unique", key=key)
+            self._index[name] = len(self.names)
+            self.names.append(name)
+        self.origins.extend(origins)
+        self.masses.append(np.asarray(m, dtype=np.float64).reshape(-1))
+        self.positions.append(np.asarray(x, dtype=np.float64).reshape(-1, 3))
+        self.velocities.append(np.asarray(v, dtype=np.float64).reshape(-1, 3))
+
+    def find(self, name: str) -> tuple[float, np.ndarray, np.ndarray] | None:
+        """Mass, position and velocity of an earlier body, or None."""
+        i = self._index.get(name)
+        if i is None:
+            return None
+        m, x, v = self.arrays()
+        return float(m[i]), x[i], v[i]
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Masses (N,), positions (N, 3), velocities (N, 3) of every body so far."""
+        if len(self.masses) > 1:  # keep one block, so repeated lookups stay cheap
+            self.masses = [np.concatenate(self.masses)]
+            self.positions = [np.concatenate(self.positions)]
+            self.velocities = [np.concatenate(self.velocities)]
+        if not self.masses:
+            return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+        return self.masses[0], self.positions[0], self.velocities[0]
+
+
+def read_bodies(doc: Fields, G: float, units: str) -> BodySet:
+    """All bodies of a document, in source order ``ephemeris``, ``generator``, ``bodies``."""
+    bodies = BodySet()
+    if doc.has("ephemeris"):
+        _read_ephemeris(Fields(doc.raw("ephemeris"), "ephemeris", EPHEMERIS_KEYS), G, units, bodies)
+    if doc.has("generator"):
+        specs = doc.raw("generator")
+        if isinstance(specs, list):
+            for i, spec in enumerate(specs):
+                _read_generator(spec, join_path("generator", i), G, bodies)
+        else:
+            _read_generator(specs, "generator", G, bodies)
+    if doc.has("bodies"):
+        items = doc.raw("bodies")
+        if not isinstance(items, list):
+            raise ScenarioError(f"expected a list of bodies, got {describe(items)}", key="bodies")
+        for i, item in enumerate(items):
+            _read_body(item, join_path("bodies", i), G, bodies)
+    if not bodies.names:
+        raise ScenarioError("the scenario has no bodies: give a bodies list, an ephemeris or a generator")
+    return bodies
+
+
+def _body_name(body: Fields) -> str:
+    name = body.string("name")
+    if not name.strip():
+        raise body.error("name", "a body name must not be empty")
+    return name
+
+
+def _read_body(item: Any, path: str, G: float, bodies: BodySet) -> None:
+    """One entry of ``bodies``: cartesian ``{name, m, x, v}`` or orbital elements."""
+    keys = set(item) if isinstance(item, dict) else set()
+    cartesian = bool(keys & {"x", "v"})
+    elements = bool(keys & {"primary", "a", "e", "inc", "Omega", "omega", "M", "f"})
+    if cartesian and elements:
+        raise ScenarioError("give either x and v (cartesian) or primary and orbital elements, not both",
+                            key=path)
+    body = Fields(item, path, ELEMENT_KEYS if elements else CARTESIAN_KEYS, "body")
+    name = _body_name(body)
+    m = body.number("m")
+    if m < 0.0:
+        raise body.error("m", f"mass must be >= 0, got {body.raw('m')}")
+    if elements:
+        x, v = _from_elements(body, m, G, bodies)
+    elif not cartesian:
+        raise ScenarioError("a body needs x and v (cartesian) or primary and a (orbital elements)", key=path)
+    else:
+        x, v = body.vector3("x"), body.vector3("v")
+    bodies.add([name], [m], x, v, [path], [body.key("name")])
+
+
+def _from_elements(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric-frame-free state: the primary's state plus the relative Keplerian state."""
+    from orbitsim.initial_conditions.elements import elements_to_cartesian
+
+    primary_name = body.string("primary")
+    primary = bodies.find(primary_name)
+    if primary is None:
+        known = ", ".join(bodies.names[:12]) or "none yet"
+        raise body.error("primary", f"unknown primary {primary_name!r}: it must be a body defined before this "
+                         f"one (known: {known})")
+    m_primary, x_primary, v_primary = primary
+    gm = G * (m_primary + m)
+    if gm <= 0.0:
+        raise body.error("m", f"{primary_name!r} and this body are both massless: orbital elements need "
+                         "G (m_primary + m) > 0")
+    a = body.number("a")
+    e = body.number("e", 0.0, minimum=0.0)
+    if e == 1.0:
+        raise body.error("e", "parabolic orbits (e = 1) are not supported; use e < 1 or e > 1")
+    if (e < 1.0) != (a > 0.0):
+        sign = "positive for an elliptic orbit (e < 1)" if e < 1.0 else "negative for a hyperbolic orbit (e > 1)"
+        raise body.error("a", f"a must be {sign}, got a = {a:g} with e = {e:g}")
+    angles = {k: body.number(k, 0.0) for k in ("inc", "Omega", "omega")}
+    anomaly = body.one_of("M", "f")
+    try:
+        r, v = elements_to_cartesian(gm, a, e, angles["inc"], angles["Omega"], angles["omega"],
+                                     **{anomaly: body.number(anomaly)})
+    except ValueError as err:
+        raise ScenarioError(str(err), key=body.key(anomaly)) from None
+    return x_primary + r, v_primary + v
+
+
+def _ephemeris_factors(units: str, key: str) -> tuple[float, float]:
+    """Length and time factors from (au, day) to the scenario's unit system."""
+    from orbitsim.units import AU_M, DAY_S, GAUSSIAN_YEAR_DAYS
+
+    if units not in _EPHEMERIS_SCALE:
+        raise ScenarioError(f"ephemeris states are in au and days: set units to one of "
+                            f"{', '.join(_EPHEMERIS_SCALE)} (got {units!r})", key=key)
+    length, time = _EPHEMERIS_SCALE[units]
+    return (AU_M if length == "m" else 1.0), {"day": 1.0, "gyr": 1.0 / GAUSSIAN_YEAR_DAYS, "s": DAY_S}[time]
+
+
+def _read_ephemeris(eph: Fields, G: float, units: str, bodies: BodySet) -> None:
+    """DE421 states and GM values, converted to the scenario's units (masses are GM / G)."""
+    from orbitsim.initial_conditions.ephemeris import EPHEMERIS_BODIES, de421_states, epoch_to_jd
+
+    eph.string("source", "de421", choices=["de421"])
+    length, time = _ephemeris_factors(units, "units")
+    when = eph.one_of("epoch", "jd")
+    if when == "epoch":
+        try:
+            jd = epoch_to_jd(eph.string("epoch"))
+        except ValueError as err:
+            raise eph.error("epoch", str(err)) from None
+    else:
+        jd = eph.number("jd")
+    names = eph.raw("bodies")
+    if not isinstance(names, list) or not names:
+        raise eph.error("bodies", f"expected a list of body names, got {describe(names)}")
+    for i, name in enumerate(names):
+        if name not in EPHEMERIS_BODIES:
+            raise ScenarioError(f"unknown ephemeris body {name!r}; valid: {', '.join(EPHEMERIS_BODIES)}",
+                                key=join_path(eph.key("bodies"), i))
+    if "earthmoon" in names and {"earth", "moon"} & set(names):
+        raise eph.error("bodies", "earthmoon is the Earth-Moon barycentre: do not combine it with earth or moon")
+    try:
+        states = de421_states(names, jd)
+    except ValueError as err:
+        raise eph.error(when, str(err)) from None
+    gm = states.gm * length**3 / time**2
+    keys = [join_path(eph.key("bodies"), i) for i in range(len(names))]
+    bodies.add(list(names), gm / G, states.positions * length, states.velocities * (length / time), keys, keys)
+
+
+def available_memory() -> int:
+    """Bytes of memory this process can expect to get (MemAvailable, else physical memory)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass  # not Linux: physical memory is the best portable bound
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 2**62  # unknown: do not refuse
+
+
+def _check_memory(n: int, key: str) -> None:
+    """Refuse a generator whose system would not fit in memory, before allocating anything."""
+    need = BYTES_FIXED + BYTES_PER_BODY * n
+    have = available_memory()
+    if need > have:
+        raise ScenarioError(f"{n} bodies need about {_gib(need)} of memory but this machine has {_gib(have)} "
+                            "available: lower n", key=key)
+
+
+def _gib(nbytes: float) -> str:
+    return f"{nbytes / 2**30:.3g} GiB"
+
+
+def _read_generator(spec: Any, path: str, G: float, bodies: BodySet) -> None:
+    """A Plummer sphere or a disc of test bodies, reproducible from its seed."""
+    from orbitsim.initial_conditions.generators import disc, plummer
+
+    kind = Fields(spec, path, [k for keys in GENERATOR_KINDS.values() for k in keys], "generator").string(
+        "kind", choices=list(GENERATOR_KINDS))
+    gen = Fields(spec, path, GENERATOR_KINDS[kind], f"{kind} generator")
+    n = gen.integer("n", minimum=1)
+    _check_memory(n, gen.key("n"))
+    seed = gen.integer("seed", minimum=0)
+    prefix = gen.string("prefix", kind)
+    width = len(str(n - 1))
+    names = [f"{prefix}{i:0{width}d}" for i in range(n)]
+    if kind == "plummer":
+        m, x, v = plummer(n, seed=seed, G=G, total_mass=gen.number("total_mass", 1.0, positive=True),
+                          scale_radius=gen.number("scale_radius", 1.0, positive=True))
+    else:
+        e_max = gen.number("e_max", 0.0, minimum=0.0)
+        if e_max >= 1.0:
+            raise gen.error("e_max", f"must be < 1 (bound orbits), got {e_max:g}")
+        inc_max = gen.number("inc_max", 0.0, minimum=0.0)
+        if inc_max > 180.0:
+            raise gen.error("inc_max", f"must be <= 180 degrees, got {inc_max:g}")
+        r_min, r_max = gen.number("r_min", positive=True), gen.number("r_max", positive=True)
+        if r_min > r_max:
+            raise gen.error("r_max", f"must be >= r_min, got r_min = {r_min:g} > r_max = {r_max:g}")
+        m, x, v = disc(n, seed=seed, G=G, central_mass=gen.number("central_mass", 1.0, positive=True),
+                       r_min=r_min, r_max=r_max, e_max=e_max, inc_max_deg=inc_max)
+        names = [gen.string("star", "star"), *names]
+    bodies.add(names, m, x, v, [path] * len(names), [gen.key("prefix")] * len(names))
+
+
+def shift_to_barycentre(m: np.ndarray, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities relative to the centre of mass (total mass must be > 0)."""
+    total = float(np.sum(m))
+    if not total > 0.0:
+        raise ScenarioError("frame: barycentric needs a positive total mass", key="frame")
+    return x - (m @ x) / total, v - (m @ v) / total
+
+
+def check_coincident(x: np.ndarray, names: list[str] | tuple[str, ...], origins: list[str] | None,
+                     softening: float) -> None:
+    """Refuse two bodies at exactly one point without softening: their force would be infinite.
+
+    Sorting the rows finds equal positions in O(N log N), so this stays cheap for large N.
+    """
+    if softening > 0.0 or x.shape[0] < 2:
+        return
+    order = np.lexsort((x[:, 2], x[:, 1], x[:, 0]))
+    ordered = x[order]
+    same = np.flatnonzero(np.all(ordered[1:] == ordered[:-1], axis=1))
+    if same.size:
+        i, j = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+        where = ", ".join(f"{c:g}" for c in x[i])
+        key = origins[j] if origins else f"bodies[{j}]"
+        if key.startswith("bodies["):  # an explicit body: point at its position
+            key += ".x"
+        raise ScenarioError(f"bodies {names[i]!r} and {names[j]!r} are both at ({where}) and softening is 0: "
+                            "the force between them would be infinite; move one or set softening > 0", key=key)
+
+
+def check_finite_state(m: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
+    """Last line of defence for states built in code: finite values, masses >= 0."""
+    for label, arr in (("masses", m), ("positions", x), ("velocities", v)):
+        bad = np.flatnonzero(~np.isfinite(arr).reshape(arr.shape[0], -1).all(axis=1))
+        if bad.size:
+            raise ScenarioError(f"{label} of body {int(bad[0])} are not finite", key=label)
+    negative = np.flatnonzero(m < 0.0)
+    if negative.size:
+        raise ScenarioError(f"mass must be >= 0, got {m[negative[0]]:g}", key=f"masses[{int(negative[0])}]")

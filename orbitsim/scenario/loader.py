@@ -1,0 +1,203 @@
+"""From a YAML file, a bundled name or a Python mapping to a validated :class:`Scenario`."""
+
+from __future__ import annotations
+
+import difflib
+import os
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_barycentre
+from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.fields import Fields, describe
+from orbitsim.scenario.model import FRAMES, Scenario, resolve_steps
+from orbitsim.scenario.yamlio import parse_yaml
+
+__all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
+
+TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "steps", "t_end", "output", "softening",
+            "frame", "bodies", "ephemeris", "generator")
+OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint")
+CHECKPOINT_KEYS = ("every", "seconds")
+#: A YAML file in the config directory is a scenario when one of these starts a line: the same
+#: directory holds sweep and benchmark matrices, which are not.
+_SCENARIO_MARK = re.compile(r"^(bodies|ephemeris|generator)\s*:", re.M)
+_UNSAFE_NAME_CHARS = re.compile(r"[^A-Za-z0-9_.+-]")
+
+
+def config_dir() -> Path:
+    """Directory of the bundled scenarios: ``$ORBITSIM_CONFIG_DIR``, else ``configs/`` of the source tree."""
+    override = os.environ.get("ORBITSIM_CONFIG_DIR")
+    if override:
+        return Path(override)
+    return Path(__file__).resolve().parents[2] / "configs"
+
+
+def bundled_scenarios() -> dict[str, Path]:
+    """Bundled scenarios by name (the file stem), sorted by name.
+
+    Returns
+    -------
+    dict[str, pathlib.Path]
+        Every ``*.yaml`` file of :func:`config_dir` with a top-level ``bodies``, ``ephemeris``
+        or ``generator`` key.
+    """
+    folder = config_dir()
+    if not folder.is_dir():
+        return {}
+    found = {}
+    for path in sorted(folder.glob("*.yaml")):
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            text = "bodies:"  # unreadable: list it, so that validating it reports the problem
+        if _SCENARIO_MARK.search(text):
+            found[path.stem] = path
+    return found
+
+
+def _locate(spec: str | os.PathLike[str]) -> tuple[Path, str]:
+    """The file behind a path or a bundled name, and the label error messages use for it."""
+    path = Path(spec)
+    if path.is_file():
+        return path, os.fspath(spec)
+    text = os.fspath(spec)
+    bundled = bundled_scenarios()
+    if text in bundled:
+        found = bundled[text]
+        try:
+            label = os.path.relpath(found)
+        except ValueError:  # another drive (Windows)
+            label = os.fspath(found)
+        return found, label if not label.startswith("..") else os.fspath(found)
+    if path.is_dir():
+        raise ScenarioError("is a directory, not a scenario file", file=text)
+    if path.suffix or os.sep in text or "/" in text:
+        raise ScenarioError("no such file", file=text)
+    close = difflib.get_close_matches(text, list(bundled), n=1, cutoff=0.6)
+    hint = f"did you mean {close[0]!r}?" if close else f"bundled: {', '.join(bundled) or 'none found'}"
+    raise ScenarioError(f"no such file or bundled scenario; {hint}", file=text)
+
+
+def load_scenario(spec: str | os.PathLike[str]) -> Scenario:
+    """Load and validate a scenario file or a bundled scenario by name.
+
+    Parameters
+    ----------
+    spec : str or os.PathLike
+        A YAML file path, or the name of a bundled scenario (``orbitsim list scenarios``).
+
+    Returns
+    -------
+    Scenario
+        With ``source`` set to the path as given (or the bundled file's path).
+
+    Raises
+    ------
+    ScenarioError
+        With ``file``, ``key`` (e.g. ``"bodies[1].m"``) and ``line`` where known.
+    """
+    path, label = _locate(spec)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ScenarioError(f"not UTF-8 text (byte {err.start})", file=label) from None
+    except OSError as err:
+        raise ScenarioError(f"cannot read file: {err.strerror}", file=label) from None
+    doc, lines = parse_yaml(text, label)
+    default_name = _UNSAFE_NAME_CHARS.sub("_", path.stem) or "scenario"
+    try:
+        return _build(doc, label, default_name)
+    except ScenarioError as err:
+        raise err.located(label, lines) from None
+
+
+def scenario_from_dict(doc: Mapping[str, Any], source: str = "<inline>") -> Scenario:
+    """Validate a scenario given as a Python mapping (the parsed YAML document).
+
+    Parameters
+    ----------
+    doc : Mapping
+        Same schema as a scenario file (see ``docs/scenarios.md``).
+    source : str
+        Label for error messages; ``name`` defaults to ``"scenario"``.
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    ScenarioError
+    """
+    try:
+        return _build(doc, source, "scenario")
+    except ScenarioError as err:
+        raise err.located(source) from None
+
+
+def _read_integrator(top: Fields) -> tuple[str, dict[str, Any]]:
+    """``integrator: name`` or ``integrator: {name: ..., <settings>}``."""
+    value = top.raw("integrator")
+    if isinstance(value, str):
+        return value, {}
+    if isinstance(value, Mapping):
+        if not isinstance(value.get("name"), str):
+            raise ScenarioError(f"an integrator mapping needs a name, got {describe(value.get('name'))}",
+                                key="integrator.name")
+        return value["name"], {k: v for k, v in value.items() if k != "name"}
+    raise ScenarioError(f"expected an integrator name or a mapping {{name: ..., <settings>}}, got "
+                        f"{describe(value)}", key="integrator")
+
+
+def _build(doc: Any, source: str, default_name: str) -> Scenario:
+    from orbitsim.units import UNIT_SYSTEMS
+
+    if doc is None:
+        raise ScenarioError("the scenario is empty: it needs at least integrator, dt, steps or t_end, and bodies")
+    top = Fields(doc, "", TOP_KEYS, "scenario")
+    units = top.string("units", "nbody", choices=list(UNIT_SYSTEMS))
+    G = top.number("G", UNIT_SYSTEMS[units].G, positive=True)
+    integrator, settings = _read_integrator(top)
+    dt = top.number("dt", positive=True)
+    t_end = None
+    if top.one_of("steps", "t_end") == "steps":
+        steps = top.integer("steps", minimum=1)
+    else:
+        t_end = top.number("t_end", positive=True)
+        steps = resolve_steps(t_end, dt)[0]
+    output = Fields(top.raw("output", {}), "output", OUTPUT_KEYS, "output section")
+    output.one_of("every", "interval", required=False)
+    softening = top.number("softening", 0.0, minimum=0.0)
+    frame = top.string("frame", "as_given", choices=FRAMES)
+    name = top.string("name", default_name)
+    description = top.string("description", "")
+    every = output.integer("every", None, minimum=1)
+    interval = output.number("interval", None, positive=True)
+    positions = output.boolean("positions", None)
+    checkpoint_every, checkpoint_seconds = _read_checkpoint(output)
+    bodies = read_bodies(top, G, units)
+    m, x, v = bodies.arrays()
+    if frame == "barycentric":
+        x, v = shift_to_barycentre(m, x, v)
+    check_coincident(x, bodies.names, bodies.origins, softening)
+    return Scenario(name=name, description=description, units=units, G=G, integrator=integrator,
+                    integrator_settings=settings, dt=dt, steps=steps, t_end=t_end, every=every,
+                    interval=interval, record_positions=positions, softening=softening, frame=frame,
+                    names=tuple(bodies.names), masses=m, positions=x, velocities=v, source=source,
+                    checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds)
+
+
+def _read_checkpoint(output: Fields) -> tuple[int | None, float | None]:
+    """``output.checkpoint: {every: K, seconds: S}`` (either or both); absent means no checkpoints."""
+    if not output.has("checkpoint"):
+        return None, None
+    section = Fields(output.raw("checkpoint"), "output.checkpoint", CHECKPOINT_KEYS, "checkpoint section")
+    every = section.integer("every", None, minimum=1)
+    seconds = section.number("seconds", None, positive=True)
+    if every is None and seconds is None:
+        raise ScenarioError("give every (steps) and/or seconds (wall time) between checkpoints",
+                            key="output.checkpoint")
+    return every, seconds

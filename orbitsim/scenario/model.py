@@ -1,0 +1,401 @@
+"""The :class:`Scenario`: one validated, fully resolved run description.
+
+A Scenario holds explicit Cartesian bodies (whatever the file used: elements, the ephemeris or a
+generator), the whole-step count, and the sampling plan. Its :meth:`Scenario.to_yaml` text loads
+back into a Scenario with the same bits, which is why a trace stores that text and its SHA-256.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from orbitsim.scenario.bodies import check_coincident, check_finite_state
+from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.fields import check_number, describe, unknown_key_error
+from orbitsim.scenario.settings import check_settings
+from orbitsim.scenario.yamlio import dump_value, format_float
+
+__all__ = ["DEFAULT_SAMPLES", "FRAMES", "POSITIONS_MAX_N", "Scenario", "resolve_steps"]
+
+#: Without ``output.every`` or ``output.interval``, a run keeps about this many samples.
+DEFAULT_SAMPLES = 1000
+#: ``output.positions`` defaults to true up to this many bodies (positions dominate a trace's size).
+POSITIONS_MAX_N = 1000
+FRAMES = ("as_given", "barycentric")
+#: A name becomes the default output file name, so it must be a plain file name.
+_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+#: t_end / dt within this relative distance of a whole number counts as whole: ``t_end = 1`` with
+#: ``dt = 0.1`` gives 9.999999999999998 by round-off and must mean 10 steps, not 9.
+_WHOLE_STEPS_RTOL = 1e-9
+
+_OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "steps", "t_end", "every",
+                "interval", "record_positions", "softening", "G", "names", "masses", "positions",
+                "velocities", "source", "checkpoint_every", "checkpoint_seconds")
+
+
+def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
+    """Whole steps of ``dt`` that fit in ``t_end``, and whether they fill it exactly.
+
+    Raises
+    ------
+    ScenarioError
+        When not even one step fits.
+    """
+    ratio = t_end / dt
+    nearest = round(ratio)
+    if nearest >= 1 and abs(ratio - nearest) <= _WHOLE_STEPS_RTOL * ratio:
+        return int(nearest), True
+    steps = math.floor(ratio)
+    # floor of a rounded quotient can be one off; the definition is steps * dt <= t_end.
+    while steps > 0 and steps * dt > t_end:
+        steps -= 1
+    while (steps + 1) * dt <= t_end:
+        steps += 1
+    if steps < 1:
+        raise ScenarioError(f"t_end = {t_end:g} is shorter than one step (dt = {dt:g})", key="t_end")
+    return steps, False
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A validated scenario; build it with :func:`~orbitsim.scenario.load_scenario`.
+
+    Attributes
+    ----------
+    name, description : str
+        ``name`` is also the default output file stem (``<name>.h5``).
+    units : str
+        Key of :data:`orbitsim.units.UNIT_SYSTEMS`.
+    G : float
+        Gravitational constant (the unit system's unless the file overrides it).
+    integrator : str
+        Canonical registry name.
+    integrator_settings : dict
+        Settings for the integrator, checked against its module's ``SETTINGS`` schema.
+    dt : float
+        Fixed timestep (> 0); never shortened.
+    steps : int
+        Whole steps to take (resolved from ``t_end`` when the file gave that).
+    t_end : float or None
+        End time as the file gave it, else None; ``steps * dt <= t_end``.
+    every : int or None
+        Sample every K steps; None with ``interval`` None means about :data:`DEFAULT_SAMPLES`.
+    interval : float or None
+        Time between samples (on the last whole step not past each sample time).
+    record_positions : bool
+        Whether positions and velocities are stored at every sample.
+    softening : float
+        Plummer softening length (>= 0).
+    frame : str
+        The frame the file asked for; ``positions``/``velocities`` are already in it.
+    names : tuple of str
+        Unique body names.
+    masses, positions, velocities : numpy.ndarray
+        (N,), (N, 3), (N, 3) float64. Treat them as read-only; change them through
+        :meth:`with_overrides`. (They are not flagged read-only because Numba compiles a
+        separate, uncached specialisation for read-only arrays, costing seconds per run.)
+    source : str
+        File path, bundled name or ``"<inline>"``: where error messages point.
+    checkpoint_every, checkpoint_seconds : int or float or None
+        ``output.checkpoint``: save a checkpoint once this many steps, or seconds of wall time,
+        have passed since the last one (see ``docs/checkpoints.md``); None for neither.
+    """
+
+    name: str
+    description: str
+    units: str
+    G: float
+    integrator: str
+    integrator_settings: dict[str, Any]
+    dt: float
+    steps: int
+    t_end: float | None
+    every: int | None
+    interval: float | None
+    record_positions: bool | None
+    softening: float
+    frame: str
+    names: tuple[str, ...]
+    masses: np.ndarray = field(repr=False)
+    positions: np.ndarray = field(repr=False)
+    velocities: np.ndarray = field(repr=False)
+    source: str = "<inline>"
+    checkpoint_every: int | None = None
+    checkpoint_seconds: float | None = None
+
+    def __post_init__(self) -> None:
+        try:
+            self._validate()
+        except ScenarioError as err:
+            raise err.located(self.source) from None
+
+    def _set(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)  # frozen: only validation may normalise fields
+
+    def _validate(self) -> None:
+        self._validate_bodies()
+        if not isinstance(self.name, str) or not _NAME_RE.match(self.name):
+            raise ScenarioError(f"name must be a plain file name (letters, digits, _ . + -), got "
+                                f"{describe(self.name)}", key="name")
+        if not isinstance(self.description, str):
+            raise ScenarioError(f"expected text, got {describe(self.description)}", key="description")
+        from orbitsim.units import UNIT_SYSTEMS
+
+        if self.units not in UNIT_SYSTEMS:
+            raise ScenarioError(f"unknown unit system {self.units!r}; valid: {', '.join(UNIT_SYSTEMS)}",
+                                key="units")
+        self._set("G", check_number(self.G, "G", positive=True))
+        self._validate_integrator()
+        self._validate_time()
+        self._set("softening", check_number(self.softening, "softening", minimum=0.0))
+        if self.frame not in FRAMES:
+            raise ScenarioError(f"frame must be one of {', '.join(FRAMES)}, got {self.frame!r}", key="frame")
+        if self.record_positions is None:
+            self._set("record_positions", self.n_bodies <= POSITIONS_MAX_N)
+        elif not isinstance(self.record_positions, bool):
+            raise ScenarioError(f"expected true or false, got {describe(self.record_positions)}",
+                                key="output.positions")
+        check_coincident(self.positions, self.names, None, self.softening)
+
+    def _validate_bodies(self) -> None:
+        try:
+            m = np.array(self.masses, dtype=np.float64).reshape(-1)
+            x = np.array(self.positions, dtype=np.float64)
+            v = np.array(self.velocities, dtype=np.float64)
+            names = tuple(self.names)
+        except (TypeError, ValueError) as err:
+            raise ScenarioError(f"bodies must be numeric arrays and a sequence of names ({err})",
+                                key="bodies") from None
+        n = m.shape[0]
+        if n < 1 or x.shape != (n, 3) or v.shape != (n, 3):
+            raise ScenarioError(f"need N >= 1 bodies with positions and velocities of shape (N, 3); got masses "
+                                f"{m.shape}, positions {x.shape}, velocities {v.shape}", key="bodies")
+        check_finite_state(m, x, v)
+        if len(names) != n or not all(isinstance(s, str) and s.strip() for s in names):
+            raise ScenarioError(f"need {n} non-empty body names, got {len(names)}", key="names")
+        if len(set(names)) != n:
+            dup = next(s for i, s in enumerate(names) if s in names[:i])
+            raise ScenarioError(f"duplicate body name {dup!r}; names must be unique", key="names")
+        for attr, value in (("masses", m), ("positions", x), ("velocities", v), ("names", names)):
+            self._set(attr, value)
+
+    def _validate_integrator(self) -> None:
+        from orbitsim.integrators.registry import UnknownIntegratorError, get_module
+
+        try:
+            module = get_module(self.integrator)
+        except UnknownIntegratorError as err:
+            raise ScenarioError(str(err), key="integrator") from None
+        self._set("integrator", module.SPEC.name)
+        settings = self.integrator_settings or {}
+        if not isinstance(settings, Mapping):
+            raise ScenarioError(f"integrator settings must be a mapping, got {describe(settings)}",
+                                key="integrator")
+        self._set("integrator_settings", check_settings(module, dict(settings)))
+
+    def _validate_time(self) -> None:
+        self._set("dt", check_number(self.dt, "dt", positive=True))
+        if isinstance(self.steps, bool) or not isinstance(self.steps, int | np.integer) or self.steps < 1:
+            raise ScenarioError(f"must be a whole number >= 1, got {describe(self.steps)}", key="steps")
+        self._set("steps", int(self.steps))
+        if self.t_end is not None:
+            self._set("t_end", check_number(self.t_end, "t_end", positive=True))
+            expected, _ = resolve_steps(self.t_end, self.dt)
+            if expected != self.steps:
+                raise ScenarioError(f"steps = {self.steps} disagrees with t_end = {self.t_end:g} / dt = "
+                                    f"{self.dt:g} ({expected} whole steps): give only one", key="steps")
+        if self.every is not None and self.interval is not None:
+            raise ScenarioError("give only one of every or interval, not both", key="output.interval")
+        if self.every is not None:
+            if isinstance(self.every, bool) or not isinstance(self.every, int | np.integer) or self.every < 1:
+                raise ScenarioError(f"must be a whole number >= 1, got {describe(self.every)}", key="output.every")
+            self._set("every", int(self.every))
+        if self.interval is not None:
+            self._set("interval", check_number(self.interval, "output.interval", positive=True))
+        self._validate_checkpoint()
+
+    def _validate_checkpoint(self) -> None:
+        every, seconds = self.checkpoint_every, self.checkpoint_seconds
+        if every is not None:
+            if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
+                raise ScenarioError(f"must be a whole number >= 1, got {describe(every)}",
+                                    key="output.checkpoint.every")
+            self._set("checkpoint_every", int(every))
+        if seconds is not None:
+            self._set("checkpoint_seconds", check_number(seconds, "output.checkpoint.seconds", positive=True))
+
+    # -- derived quantities ------------------------------------------------------------------
+
+    @property
+    def n_bodies(self) -> int:
+        """Number of bodies N."""
+        return int(self.masses.shape[0])
+
+    @property
+    def end_time(self) -> float:
+        """Time of the last step, ``steps * dt`` (<= ``t_end`` when that was given)."""
+        return self.steps * self.dt
+
+    @property
+    def t_end_is_whole(self) -> bool:
+        """False when ``t_end`` was given and is not a whole number of steps."""
+        return self.t_end is None or resolve_steps(self.t_end, self.dt)[1]
+
+    @property
+    def sample_every(self) -> int | None:
+        """The ``every`` actually used (the default when neither every nor interval was given)."""
+        if self.interval is not None:
+            return None
+        return self.every if self.every is not None else max(1, math.ceil(self.steps / DEFAULT_SAMPLES))
+
+    @property
+    def checkpoints(self) -> bool:
+        """Whether ``output.checkpoint`` asks for periodic checkpoints."""
+        return self.checkpoint_every is not None or self.checkpoint_seconds is not None
+
+    def sample_steps(self) -> np.ndarray:
+        """Step indices of the samples: 0 first, ``steps`` last (int64, increasing)."""
+        from orbitsim.simulation import sample_steps_every, sample_steps_interval
+
+        if self.interval is not None:
+            return sample_steps_interval(self.steps, self.dt, self.interval)
+        return sample_steps_every(self.steps, int(self.sample_every))
+
+    def notes(self) -> list[str]:
+        """Things a user should know before running, one line each (may be empty)."""
+        notes = []
+        if not self.t_end_is_whole:
+            notes.append(f"t_end = {self.t_end:.10g} is not a whole number of steps of dt = {self.dt:g}: the run "
+                         f"takes {self.steps} whole steps and ends at t = {self.end_time:.10g} "
+                         "(a step is never shortened)")
+        if self.interval is not None and self.interval < self.dt:
+            notes.append(f"output.interval = {self.interval:g} is shorter than dt = {self.dt:g}: every step "
+                         "is sampled")
+        return notes
+
+    # -- serialisation -----------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fully resolved scenario as plain Python (what :meth:`to_yaml` writes).
+
+        Bodies are explicit and Cartesian, the frame is ``as_given`` (any shift is already
+        applied), ``steps`` replaces ``t_end`` and the sampling is explicit, so
+        ``scenario_from_dict(s.to_dict())`` reproduces the same bits.
+        """
+        integrator: Any = self.integrator
+        if self.integrator_settings:
+            integrator = {"name": self.integrator, **self.integrator_settings}
+        output: dict[str, Any] = ({"interval": self.interval} if self.interval is not None
+                                  else {"every": self.sample_every})
+        output["positions"] = bool(self.record_positions)
+        if self.checkpoints:
+            # Only when set, so the text (and SHA-256) of scenarios without checkpoints is unchanged.
+            output["checkpoint"] = {k: v for k, v in (("every", self.checkpoint_every),
+                                                      ("seconds", self.checkpoint_seconds)) if v is not None}
+        bodies = [{"name": name, "m": float(m), "x": [float(c) for c in x], "v": [float(c) for c in v]}
+                  for name, m, x, v in zip(self.names, self.masses, self.positions, self.velocities, strict=True)]
+        return {"name": self.name, "description": self.description, "units": self.units, "G": self.G,
+                "integrator": integrator, "dt": self.dt, "steps": self.steps, "output": output,
+                "softening": self.softening, "frame": "as_given", "bodies": bodies}
+
+    def to_yaml(self) -> str:
+        """The fully resolved scenario as YAML text; loading it reproduces the same bits.
+
+        The text is built once and kept (a 16k-body scenario takes a few tenths of a second),
+        which is one more reason to treat the arrays as read-only.
+        """
+        cached = self.__dict__.get("_yaml")
+        if cached is not None:
+            return cached
+        doc = self.to_dict()
+        del doc["bodies"]  # written row by row below: far faster than the generic writer
+        lines = ["# orbitsim scenario, fully resolved: explicit Cartesian bodies, whole steps."]
+        for key, value in doc.items():
+            if key == "output":
+                lines.append("output:")
+                lines.extend(f"  {k}: {dump_value(v)}" for k, v in value.items())
+            else:
+                lines.append(f"{key}: {dump_value(value)}")
+        lines.append("bodies:")
+        f = format_float
+        for name, m, x, v in zip(self.names, self.masses.tolist(), self.positions.tolist(),
+                                 self.velocities.tolist(), strict=True):
+            lines.append(f"  - {{name: {dump_value(name)}, m: {f(m)}, x: [{f(x[0])}, {f(x[1])}, {f(x[2])}], "
+                         f"v: [{f(v[0])}, {f(v[1])}, {f(v[2])}]}}")
+        text = "\n".join(lines) + "\n"
+        self._set("_yaml", text)
+        return text
+
+    @property
+    def sha256(self) -> str:
+        """Hex SHA-256 of :meth:`to_yaml` (UTF-8): identifies what was run, not where it came from."""
+        return hashlib.sha256(self.to_yaml().encode("utf-8")).hexdigest()
+
+    def with_overrides(self, **changes: Any) -> Scenario:
+        """A new, re-validated Scenario with some fields replaced.
+
+        ``steps`` clears ``t_end``; ``t_end`` (or a new ``dt`` when the scenario was given by
+        ``t_end``) re-resolves ``steps``; ``every`` clears ``interval`` and vice versa; a
+        different ``integrator`` (a name, or a mapping ``{name: ..., <settings>}``) drops the old
+        integrator's settings unless ``integrator_settings`` is given. ``None`` values are ignored.
+
+        Raises
+        ------
+        ScenarioError
+            For an unknown field or an invalid value (naming the field).
+        """
+        changes = {k: v for k, v in changes.items() if v is not None}
+        for key in changes:
+            if key not in _OVERRIDABLE:
+                raise unknown_key_error(key, "", _OVERRIDABLE).located(self.source)
+        try:
+            _resolve_integrator_change(self, changes)
+            _resolve_time_change(self, changes)
+        except ScenarioError as err:
+            raise err.located(self.source) from None
+        if "every" in changes:
+            changes["interval"] = None
+        elif "interval" in changes:
+            changes["every"] = None
+        return dataclasses.replace(self, **changes)
+
+
+def _resolve_integrator_change(scenario: Scenario, changes: dict[str, Any]) -> None:
+    integrator = changes.get("integrator")
+    if isinstance(integrator, Mapping):
+        settings = {k: v for k, v in integrator.items() if k != "name"}
+        if "name" not in integrator:
+            raise ScenarioError("an integrator mapping needs a name", key="integrator.name")
+        changes["integrator"] = integrator["name"]
+        changes.setdefault("integrator_settings", settings)
+    if "integrator" in changes and "integrator_settings" not in changes:
+        from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name
+
+        try:
+            new = canonical_name(changes["integrator"])
+        except UnknownIntegratorError as err:
+            raise ScenarioError(str(err), key="integrator") from None
+        if new != scenario.integrator:
+            changes["integrator_settings"] = {}
+
+
+def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
+    if "steps" in changes and "t_end" in changes:
+        raise ScenarioError("give only one of steps or t_end, not both", key="t_end")
+    dt = check_number(changes.get("dt", scenario.dt), "dt", positive=True)
+    if "steps" in changes:
+        changes["t_end"] = None
+        return
+    t_end = changes.get("t_end", scenario.t_end)
+    if t_end is not None:
+        t_end = check_number(t_end, "t_end", positive=True)
+        changes["t_end"] = t_end
+        changes["steps"] = resolve_steps(t_end, dt)[0]

@@ -1,0 +1,126 @@
+"""Unit tests of the batch pieces that need no scenario and no cluster: key paths, summaries, sizing."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from orbitsim.batch.cluster import plan_local
+from orbitsim.batch.overrides import OverrideError, apply_override, path_components, paths_overlap
+from orbitsim.batch.summary import column_names, format_table, write_csv, write_h5
+
+
+def test_path_components_accepts_dots_and_brackets():
+    assert path_components("bodies.1.e") == ("bodies", "1", "e")
+    assert path_components("bodies[1].e") == ("bodies", "1", "e")
+    assert path_components("dt") == ("dt",)
+
+
+def test_paths_overlap_is_common_prefix_only_when_nested():
+    assert paths_overlap(("bodies", "1", "e"), ("bodies", "1")) == 2
+    assert paths_overlap(("dt",), ("dt",)) == 1
+    assert paths_overlap(("bodies", "1", "a"), ("bodies", "1", "e")) == 2  # keys of one body
+    assert paths_overlap(("bodies", "0", "m"), ("bodies", "1", "e")) == 0
+    assert paths_overlap(("dt",), ("steps",)) == 0
+
+
+def test_apply_override_sets_nested_values_and_creates_mapping_keys():
+    doc = {"dt": 0.1, "bodies": [{"m": 1.0}, {"m": 1e-3, "e": 0.1}], "generator": {"seed": 1}}
+    apply_override(doc, "dt", 0.05)
+    apply_override(doc, "bodies.1.e", 0.5)
+    apply_override(doc, "generator.seed", 7)
+    apply_override(doc, "output.every", 10)  # optional section absent from the base
+    assert doc == {"dt": 0.05, "bodies": [{"m": 1.0}, {"m": 1e-3, "e": 0.5}], "generator": {"seed": 7},
+                   "output": {"every": 10}}
+
+
+@pytest.mark.parametrize(
+    ("path", "needle"),
+    [("bodies.5.e", "has 2 entries; no index 5"), ("bodies.x", "not an index"), ("dt.x", "not a mapping"),
+     ("", "empty key path")],
+)
+def test_apply_override_rejects_paths_that_do_not_fit(path, needle):
+    doc = {"dt": 0.1, "bodies": [{}, {}]}
+    with pytest.raises(OverrideError, match=needle) as info:
+        apply_override(doc, path, 1)
+    assert info.value.path == path
+
+
+def _rows():
+    base = {"steps_done": 100, "wall_time_s": 0.5, "steps_per_second": 200.0, "worker": "tcp://w:1",
+            "resumed": False, "trace": "runs/a.h5", "error": ""}
+    return [
+        {"case": 0, "run_id": "a" * 16, "params": {"integrator": "verlet", "dt": 0.1}, "status": "complete",
+         "max_abs_energy_error": 1.25e-7, "final_energy_error": -3.0e-8, **base},
+        {"case": 1, "run_id": "b" * 16, "params": {"integrator": "rk4", "dt": 0.2}, "status": "failed",
+         **base, "max_abs_energy_error": math.nan, "final_energy_error": math.nan, "steps_done": 0,
+         "error": "ValueError: boom", "trace": ""},
+    ]
+
+
+def test_csv_summary_round_trips_floats_exactly(tmp_path):
+    rows = _rows()
+    path = write_csv(tmp_path / "summary.csv", rows, ("integrator", "dt"))
+    with open(path, newline="") as fh:
+        got = list(csv.DictReader(fh))
+    assert list(got[0]) == column_names(("integrator", "dt"))
+    assert float(got[0]["max_abs_energy_error"]) == rows[0]["max_abs_energy_error"]
+    assert got[1]["max_abs_energy_error"] == ""  # a failed run has no energy error
+    assert got[1]["error"] == "ValueError: boom"
+    assert not (tmp_path / "summary.csv.tmp").exists()
+
+
+def test_h5_summary_has_typed_columns_and_params(tmp_path):
+    path = write_h5(tmp_path / "summary.h5", _rows(), ("integrator", "dt"), {"sweep_name": "s"})
+    with h5py.File(path, "r") as f:
+        assert f.attrs["sweep_name"] == "s"
+        assert f["steps_done"].dtype == np.int64
+        assert np.isnan(f["max_abs_energy_error"][1])
+        assert list(f["status"].asstr()[()]) == ["complete", "failed"]
+        assert f["params/dt"][()].tolist() == [0.1, 0.2]
+        assert list(f["params/integrator"].asstr()[()]) == ["verlet", "rk4"]
+
+
+def test_param_column_that_clashes_with_a_result_column_is_prefixed():
+    assert "param:status" in column_names(("status",))
+
+
+def test_format_table_lists_every_row_and_the_error():
+    text = format_table(_rows(), ("integrator", "dt"))
+    assert "verlet" in text and "rk4" in text and "ValueError: boom" in text
+    assert len(text.splitlines()) == 3
+
+
+def test_plan_local_keeps_workers_times_threads_within_cores():
+    assert plan_local(cores=2) == plan_local(workers=2, cores=2)
+    plan = plan_local(cores=8, workers=3)
+    assert plan.workers == 3 and plan.workers * plan.threads <= 8
+    assert plan_local(cores=8, n_runs=2).workers == 2  # no idle workers for a tiny sweep
+    assert plan_local(cores=2, workers=1).threads == 2
+    with pytest.raises(ValueError):
+        plan_local(workers=0)
+
+
+def test_the_batch_command_imports_neither_numba_nor_dask():
+    import subprocess
+    import sys
+
+    code = ("import sys, orbitsim.cli.batch, orbitsim.batch; "
+            "print(sorted(m for m in ('numba', 'distributed', 'h5py') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_batch_help_documents_the_options():
+    from click.testing import CliRunner
+
+    from orbitsim.cli.main import cli
+
+    result = CliRunner().invoke(cli, ["batch", "--help"])
+    assert result.exit_code == 0
+    for option in ("--outdir", "--scheduler", "--workers", "--threads", "--resume"):
+        assert option in result.output

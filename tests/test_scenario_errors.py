@@ -1,0 +1,149 @@
+"""Every kind of malformed scenario: one line naming file, key path and fix; exit 2; no output file.
+
+Each case is checked twice: through :func:`load_scenario` (the error object) and through
+``orbitsim run`` with click's runner (exit code, message, no traceback, nothing written).
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from orbitsim.cli.main import cli
+from orbitsim.scenario import ScenarioError, load_scenario
+
+HEAD = "integrator: verlet\ndt: 0.01\nsteps: 10\n"
+STAR = "  - {name: star, m: 1.0, x: [0, 0, 0], v: [0, 0, 0]}\n"
+PLANET = "  - {name: planet, m: 1.0e-3, x: [1, 0, 0], v: [0, 1, 0]}\n"
+BODIES = "bodies:\n" + STAR + PLANET
+
+# (id, YAML text, key path expected in the message (None: no key), fragment of the reason)
+CASES = [
+    ("yaml_syntax", HEAD + "bodies: [\n", None, "YAML syntax error"),
+    ("yaml_tab", HEAD + "bodies:\n\t- {name: a}\n", None, "YAML syntax error"),
+    ("unknown_key", HEAD + "colour: red\n" + BODIES, "colour", "unknown key 'colour'"),
+    ("misspelt_key", "integrator: verlet\ndt: 0.01\nstpes: 10\n" + BODIES, "stpes", "did you mean 'steps'?"),
+    ("misspelt_nested_key", HEAD + "output: {evry: 2}\n" + BODIES, "output.evry", "did you mean 'every'?"),
+    ("duplicate_key", HEAD + "dt: 0.02\n" + BODIES, "dt", "duplicate key 'dt' (first given on line 2)"),
+    ("wrong_type", "integrator: verlet\ndt: fast\nsteps: 10\n" + BODIES, "dt", "expected a number"),
+    ("wrong_type_vector", HEAD + "bodies:\n  - {name: a, m: 1, x: [0, 0], v: [0, 0, 0]}\n", "bodies[0].x",
+     "list of 3 numbers"),
+    ("missing_key", "integrator: verlet\nsteps: 10\n" + BODIES, "dt", "required key 'dt' is missing"),
+    ("missing_body_key", HEAD + "bodies:\n  - {name: a, x: [0, 0, 0], v: [0, 0, 0]}\n", "bodies[0].m",
+     "required key 'm'"),
+    ("nan", "integrator: verlet\ndt: .nan\nsteps: 10\n" + BODIES, "dt", "finite"),
+    ("inf", HEAD + "bodies:\n  - {name: a, m: 1, x: [.inf, 0, 0], v: [0, 0, 0]}\n", "bodies[0].x[0]",
+     "finite"),
+    ("negative_mass", HEAD + "bodies:\n" + STAR + "  - {name: b, m: -1, x: [1, 0, 0], v: [0, 0, 0]}\n",
+     "bodies[1].m", "mass must be >= 0, got -1"),
+    ("dt_zero", "integrator: verlet\ndt: 0\nsteps: 10\n" + BODIES, "dt", "must be > 0"),
+    ("dt_negative", "integrator: verlet\ndt: -0.1\nsteps: 10\n" + BODIES, "dt", "must be > 0"),
+    ("steps_and_t_end", HEAD + "t_end: 1.0\n" + BODIES, "t_end", "only one of steps or t_end"),
+    ("neither_steps_nor_t_end", "integrator: verlet\ndt: 0.01\n" + BODIES, None, "give one of steps or t_end"),
+    ("steps_not_whole", "integrator: verlet\ndt: 0.01\nsteps: 10.5\n" + BODIES, "steps", "whole number"),
+    ("every_and_interval", HEAD + "output: {every: 2, interval: 0.1}\n" + BODIES, "output.interval",
+     "only one of every or interval"),
+    ("duplicate_body_name", HEAD + "bodies:\n" + STAR + STAR.replace("0, 0, 0]", "1, 0, 0]", 1),
+     "bodies[1].name", "duplicate body name 'star'"),
+    ("unknown_primary", HEAD + "bodies:\n" + STAR + "  - {name: p, m: 0, primary: sun, a: 1, M: 0}\n",
+     "bodies[1].primary", "unknown primary 'sun'"),
+    ("elements_bad_sign", HEAD + "bodies:\n" + STAR + "  - {name: p, m: 0, primary: star, a: 1, e: 1.5, f: 0}\n",
+     "bodies[1].a", "negative for a hyperbolic orbit"),
+    ("unknown_integrator", "integrator: rk45\ndt: 0.01\nsteps: 10\n" + BODIES, "integrator",
+     "unknown integrator 'rk45'"),
+    ("unknown_integrator_setting", "integrator: {name: verlet, order: 2}\ndt: 0.01\nsteps: 10\n" + BODIES,
+     "integrator.order", "takes no settings"),
+    ("coincident_bodies", HEAD + "bodies:\n" + STAR + STAR.replace("star", "twin"), "bodies[1].x",
+     "are both at (0, 0, 0) and softening is 0"),
+    ("huge_generator", HEAD + "softening: 0.1\ngenerator: {kind: plummer, n: 1000000000000, seed: 1}\n",
+     "generator.n", "of memory"),
+    ("unknown_generator_kind", HEAD + "generator: {kind: plumer, n: 10, seed: 1}\n", "generator.kind",
+     "did you mean 'plummer'?"),
+    ("unknown_units", "units: cgs\n" + HEAD + BODIES, "units", "unknown value 'cgs'"),
+    ("ephemeris_unknown_body", "units: au-day-msun\n" + HEAD + "ephemeris: {jd: 2451545.0, bodies: [sun, vulcan]}\n",
+     "ephemeris.bodies[1]", "unknown ephemeris body 'vulcan'"),
+    ("ephemeris_needs_units", HEAD + "ephemeris: {jd: 2451545.0, bodies: [sun]}\n", "units",
+     "ephemeris states are in au and days"),
+    ("object_tag", HEAD + "name: !!python/object/apply:os.system ['echo hacked']\n" + BODIES, "name",
+     "is not allowed"),
+    ("scalar_object_tag", "integrator: verlet\ndt: !!python/name:os.system\nsteps: 10\n" + BODIES, "dt",
+     "is not allowed"),
+    ("binary_tag", HEAD + "description: !!binary aGVsbG8=\n" + BODIES, "description", "is not allowed"),
+    ("no_bodies", HEAD, None, "no bodies"),
+    ("not_a_mapping", "- 1\n- 2\n", None, "expected a scenario of keys and values"),
+    ("empty_file", "", None, "the scenario is empty"),
+    ("bad_name", "name: ../evil\n" + HEAD + BODIES, "name", "plain file name"),
+]
+IDS = [case[0] for case in CASES]
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "broken.yaml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("case", "text", "key", "fragment"), CASES, ids=IDS)
+def test_malformed_scenario_error(tmp_path: Path, case: str, text: str, key: str | None, fragment: str) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    err = info.value
+    message = str(err)
+    assert err.file == str(path)
+    assert message.startswith(f"{path}: ")
+    if key is not None:
+        assert err.key == key, message
+        assert f": {key}: " in message
+    assert fragment in message
+    assert "\n" not in message
+
+
+@pytest.mark.parametrize(("case", "text", "key", "fragment"), CASES, ids=IDS)
+def test_malformed_scenario_cli(tmp_path: Path, case: str, text: str, key: str | None, fragment: str) -> None:
+    path = write(tmp_path, text)
+    out = tmp_path / "out.h5"
+    result = CliRunner().invoke(cli, ["run", str(path), "-o", str(out), "-q"])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("orbitsim: error: ")
+    assert str(path) in lines[0] and fragment in lines[0]
+    if key is not None:
+        assert key in lines[0]
+    assert not out.exists() and not Path(str(out) + ".tmp").exists()
+    assert list(tmp_path.iterdir()) == [path]
+
+
+def test_duplicate_key_names_both_lines(tmp_path: Path) -> None:
+    path = write(tmp_path, HEAD + textwrap.dedent("""\
+        bodies:
+          - name: a
+            m: 1
+            m: 2
+            x: [0, 0, 0]
+            v: [0, 0, 0]
+        """))
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert info.value.key == "bodies[0].m" and info.value.line == 7
+    assert "first given on line 6" in str(info.value)
+
+
+def test_missing_file_and_unknown_bundled_name(tmp_path: Path) -> None:
+    with pytest.raises(ScenarioError, match="no such file"):
+        load_scenario(tmp_path / "nope.yaml")
+    with pytest.raises(ScenarioError, match="did you mean 'figure_eight'"):
+        load_scenario("figure_eigth")
+
+
+def test_validate_reports_every_bad_file(tmp_path: Path) -> None:
+    bad = write(tmp_path, HEAD + "stpes: 3\n" + BODIES)
+    result = CliRunner().invoke(cli, ["validate", "two_body_circular", str(bad)])
+    assert result.exit_code == 2
+    assert "ok: two_body_circular" in result.output
+    assert f"orbitsim: error: {bad}: stpes: unknown key 'stpes'; did you mean 'steps'?" in result.output
