@@ -127,7 +127,7 @@ def test_a_worker_killed_mid_sweep_loses_no_result(dask_cluster, tmp_path):
     from distributed import Client
 
     procs, pids = dask_cluster
-    sweep = load_sweep(sweep_file(tmp_path, 8, 1_500_000))  # ~1 s per run
+    sweep = load_sweep(sweep_file(tmp_path, 8, 4_000_000))  # 0.4 s (quiet) to 2 s (busy) per run
     out = tmp_path / "out"
     outcome: dict = {}
     thread = threading.Thread(target=lambda: outcome.update(result=run_sweep(sweep, out, scheduler=procs.address)),
@@ -154,5 +154,5 @@ def test_a_worker_killed_mid_sweep_loses_no_result(dask_cluster, tmp_path):
         trace = read_trace(out / row["trace"])
         assert trace.attrs["status"] == "complete" and trace.attrs["scenario_sha256"] == case.scenario.sha256
         with h5py.File(out / row["trace"]) as f:
-            assert int(f["step"][-1]) == 1_500_000
+            assert int(f["step"][-1]) == 4_000_000
     assert not list((out / "runs").glob("*.tmp"))

@@ -157,8 +157,9 @@ def wait_for(predicate, timeout: float, what: str) -> None:
 
 
 def test_interrupted_sweep_finishes_when_the_command_is_run_again(tmp_path):
-    # Runs of ~0.3-1 s, so that Ctrl-C lands while some are done and others are not.
-    path = grid_sweep(tmp_path, 8, steps=500_000, every=1000)
+    # Runs of ~0.3 s (quiet machine) to ~1.5 s (busy), so that Ctrl-C lands while some are done and
+    # others are not.
+    path = grid_sweep(tmp_path, 8, steps=3_000_000, every=1000)
     out = tmp_path / "out"
     command = [ORBITSIM, "batch", str(path), "-o", str(out), "--workers", "2", "--no-progress"]
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

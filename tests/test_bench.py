@@ -64,6 +64,7 @@ def test_results_json_has_machine_versions_and_threads(results: tuple[dict, Path
     for key in ("cpu_model", "cpu_count", "numba_version", "numpy_version", "rebound_version", "orbitsim_version",
                 "python_version", "numba_threading_layer"):
         assert key in doc["machine"], key
+    assert {"orbitsim", "numba", "numpy", "rebound", "python"} <= set(doc["versions"])
     assert doc["ceiling"]["pairs_once_per_core"] == pytest.approx(2 * doc["ceiling"]["full_per_core"])
 
 
@@ -176,6 +177,10 @@ def test_steps_follow_the_work_budget() -> None:
                                           "rebound_integrators": ["leapfrog:4"], "work": 9.9e6}]}).steps_cases()
     assert [(c.engine, c.integrator, c.steps) for c in cases] == [
         ("orbitsim", "verlet", 1000), ("orbitsim", "leapfrog4", 334), ("rebound", "leapfrog:4", 34)]
+    fixed = matrix_from_dict({"groups": [{"name": "g", "n": [100, 200], "steps_by_n": {200: 7},
+                                          "work": 9.9e6}]}).steps_cases()
+    assert [(c.engine, c.n, c.steps) for c in fixed] == [
+        ("orbitsim", 100, 1000), ("rebound", 100, 100), ("orbitsim", 200, 7), ("rebound", 200, 25)]
 
 
 def test_cached_function_names_and_foreign_schemes(tmp_path: Path) -> None:

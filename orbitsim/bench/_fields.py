@@ -63,6 +63,14 @@ class Reader:
             raise self.error(join(path, key), "expected at least one value")
         return [_as_int(self, v, f"{join(path, key)}[{k}]", minimum) for k, v in enumerate(items)]
 
+    def steps_by_n(self, g: Mapping[str, Any], path: str) -> dict[int, int]:
+        """``{N: steps}`` for the orbitsim cases at those N (empty when absent)."""
+        value = g.get("steps_by_n", {})
+        if not isinstance(value, Mapping):
+            raise self.error(join(path, "steps_by_n"), f"expected a mapping N: steps, got {value!r}")
+        key = join(path, "steps_by_n")
+        return {_as_int(self, n, f"{key}", 2): _as_int(self, k, f"{key}.{n}", 1) for n, k in value.items()}
+
     def number(self, g: Mapping[str, Any], key: str, path: str, default: float, *, allow_zero: bool = False) -> float:
         value = _yaml_number(g.get(key, default))
         ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)

@@ -17,7 +17,8 @@ A matrix is a list of *groups*; each group has a ``kind`` that says what it meas
         rebound_n: [256, 1024, 4096]      # optional subset of n for REBOUND (it is slow at large N)
         threads: [1, 2]           # orbitsim only; REBOUND's basic gravity is serial
         work: 4.0e9               # pair interactions per timed repeat (steps derived from it) ...
-        # steps: [1000]           # ... or explicit step counts (a list is another axis)
+        steps_by_n: {16384: 40}   # ... except at these N (orbitsim cases) ...
+        # steps: [1000]           # ... or explicit step counts for every N (a list is another axis)
       - {name: crossover, kind: kernels, n: [16, 64, 256, 1024]}   # the bare force kernels
       - {name: startup, kind: startup, integrator: verlet}
       - {name: sampling, kind: sampling, n: 9, steps: 200000, every: 100}
@@ -62,7 +63,7 @@ _ENGINES = ("orbitsim", "rebound")
 _TOP_KEYS = ("name", "description", "repeats", "warmup", "threads", "groups")
 _GROUP_KEYS: dict[str, tuple[str, ...]] = {
     "steps": ("system", "engines", "integrators", "rebound_integrators", "n", "rebound_n",
-              "threads", "steps", "work", "rebound_work", "min_steps", "max_steps", "dt",
+              "threads", "steps", "steps_by_n", "work", "rebound_work", "min_steps", "max_steps", "dt",
               "softening", "seed"),
     "kernels": ("n", "threads", "work"),
     "startup": ("integrator", "n", "steps", "cold"),
@@ -210,6 +211,7 @@ def _read_steps(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
         raise r.error(f"{path}.steps", "give either steps or work/rebound_work, not both")
     p["steps"] = tuple(r.integers(g, "steps", path, [], minimum=1)) if "steps" in g else ()
     p["work"] = r.number(g, "work", path, 2e9)
+    p["steps_by_n"] = r.steps_by_n(g, path)
     p["rebound_work"] = r.number(g, "rebound_work", path, p["work"] / 10.0)
     if p["max_steps"] < p["min_steps"]:
         raise r.error(f"{path}.max_steps", f"must be >= min_steps ({p['min_steps']})")
@@ -292,7 +294,8 @@ def _expand_steps(group: Group, lookup: Callable[[str], tuple[str, int]]) -> lis
         for engine, name, evals, ns, threads, work in schemes:
             if n not in ns:
                 continue
-            counts = p["steps"] or (steps_for(work, n, evals, p["min_steps"], p["max_steps"]),)
+            fixed = p["steps_by_n"].get(n) if engine == "orbitsim" else None
+            counts = p["steps"] or (fixed or steps_for(work, n, evals, p["min_steps"], p["max_steps"]),)
             for t in threads:
                 for steps in counts:
                     cases.append(StepsCase(

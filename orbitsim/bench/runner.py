@@ -38,6 +38,7 @@ def quick_matrix(matrix: BenchMatrix) -> BenchMatrix:
         if g.kind == "steps":
             p["work"], p["rebound_work"] = p["work"] / 10.0, p["rebound_work"] / 10.0
             p["steps"] = tuple(max(p["min_steps"], s // 10) for s in p["steps"])
+            p["steps_by_n"] = {n: max(p["min_steps"], s // 10) for n, s in p["steps_by_n"].items()}
         elif g.kind == "sampling":
             p["steps"] = max(p["every"], p["steps"] // 10)
         elif g.kind == "memory":
@@ -171,6 +172,7 @@ def run_matrix(matrix: BenchMatrix, *, threads: int | None = None, quick: bool =
     doc: dict[str, Any] = {"schema": SCHEMA, "matrix": {"name": matrix.name, "source": matrix.source,
                                                          "quick": quick}}
     doc["machine"] = machine_info(default_threads)
+    doc["versions"] = {k[: -len("_version")]: v for k, v in doc["machine"].items() if k.endswith("_version")}
     doc["threads"] = default_threads
     doc["ceiling"] = measure_ceiling() if with_ceiling else None
     doc["cases"], doc["probes"], doc["skipped"] = [], [], []
