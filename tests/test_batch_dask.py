@@ -90,9 +90,19 @@ def dask_cluster(tmp_path):
     try:
         procs.add_worker()
         procs.add_worker()
-        with Client(procs.address, timeout="60s") as client:
-            client.wait_for_workers(2, timeout=120)
-            pids = client.run(os.getpid)  # worker address -> pid of the worker process
+        wait_for(lambda: "Scheduler at" in (tmp_path / "scheduler.log").read_text(), 60, "the scheduler to listen")
+        # A loaded machine can drop the very first connection while the scheduler finishes starting
+        # (seen as CommClosedError during register-client): retry the handshake a few times.
+        for attempt in range(5):
+            try:
+                with Client(procs.address, timeout="60s") as client:
+                    client.wait_for_workers(2, timeout=120)
+                    pids = client.run(os.getpid)  # worker address -> pid of the worker process
+                break
+            except OSError:
+                if attempt == 4:
+                    raise
+                time.sleep(1.0)
         yield procs, pids
     finally:
         procs.stop()

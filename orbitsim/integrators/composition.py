@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from orbitsim._jit import jit
-from orbitsim.integrators.base import drift, kick
+from orbitsim.integrators.base import drift, kick, record_sample
 from orbitsim.physics.gravity import update_accelerations
 
 #: Order 2: the plain drift-kick-drift leapfrog, one substep.
@@ -78,3 +78,23 @@ def compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks):
         update_accelerations(pos, m, force, acc)
         kick(vel, acc, dt * kicks[s])
         drift(pos, vel, dt * drifts[s + 1])
+
+
+@jit
+def run_dkd(state, force, dt, work, t0, n_done, targets, record, out, drifts, kicks):
+    """Fixed-dt loop of :func:`compose_dkd` for one coefficient table.
+
+    The leapfrog, leapfrog4/6/8 modules share this loop (tables are data, so it caches once for
+    all of them); the contract is :mod:`orbitsim.integrators.base`'s ``run``.
+    """
+    pos, vel, acc, m = state
+    written = 0
+    for k in range(targets.shape[0]):
+        while n_done < targets[k]:
+            compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks)
+            n_done += 1
+        if record[k]:
+            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+                return written, n_done, False
+            written += 1
+    return written, n_done, True

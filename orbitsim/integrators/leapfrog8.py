@@ -7,8 +7,8 @@ REBOUND's ``leapfrog`` with ``order = 8``.
 from __future__ import annotations
 
 from orbitsim._jit import jit
-from orbitsim.integrators.base import IntegratorSpec, record_sample
-from orbitsim.integrators.composition import LEAPFROG8_WEIGHTS, compose_dkd, drift_coefficients
+from orbitsim.integrators.base import IntegratorSpec
+from orbitsim.integrators.composition import LEAPFROG8_WEIGHTS, compose_dkd, drift_coefficients, run_dkd
 
 SPEC = IntegratorSpec(
     name="leapfrog8",
@@ -38,14 +38,4 @@ def step(pos, vel, acc, m, force, dt, work):
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
     """Fixed-dt loop of :func:`step` (contract in :mod:`orbitsim.integrators.base`)."""
-    pos, vel, acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        while n_done < targets[k]:
-            step(pos, vel, acc, m, force, dt, work)
-            n_done += 1
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    return run_dkd(state, force, dt, work, t0, n_done, targets, record, out, DRIFTS, KICKS)
