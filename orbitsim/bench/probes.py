@@ -149,16 +149,20 @@ def run_sampling(group: Group) -> dict[str, Any]:
         for _ in range(max(1, group.warmup)):
             fn()
     times: dict[str, list[float]] = {k: [] for k in runs}
+    cpu: dict[str, list[float]] = {k: [] for k in runs}
     for _ in range(group.repeats):
         for key, fn in runs.items():  # interleaved: both see the same machine load
-            start = time.perf_counter()
+            start, cpu0 = time.perf_counter(), time.process_time()
             fn()
             times[key].append(time.perf_counter() - start)
+            cpu[key].append(time.process_time() - cpu0)
     every, none = summarise(times["every"]), summarise(times["none"])
     return {"system": p["system"], "n": s.n, "integrator": p["integrator"], "steps": p["steps"],
             "every": p["every"], "samples": p["steps"] // p["every"] + 1, "with_samples": every,
             "without_samples": none, "overhead": every["median"] / none["median"] - 1.0,
-            "overhead_min": every["min"] / none["min"] - 1.0}
+            "overhead_min": every["min"] / none["min"] - 1.0,
+            # One thread: the CPU time is the cost without the waits a busy machine adds.
+            "overhead_cpu": summarise(cpu["every"])["median"] / summarise(cpu["none"])["median"] - 1.0}
 
 
 def _probe(args: list[str], timeout: float | None = None) -> dict[str, Any]:

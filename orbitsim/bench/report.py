@@ -98,7 +98,8 @@ def _probes(doc: dict[str, Any]) -> list[str]:
             out.append(f"{p['integrator']}, N = {p['n']}, {p['steps']} steps: every {p['every']} steps "
                        f"({p['samples']} samples) {_spread(p['with_samples'])}; first and last only "
                        f"{_spread(p['without_samples'])}; overhead {p['overhead']:+.1%} "
-                       f"(from the minima {p['overhead_min']:+.1%}).\n")
+                       f"(from the minima {p['overhead_min']:+.1%}, "
+                       f"from CPU time {p.get('overhead_cpu', float('nan')):+.1%}).\n")
         elif p["kind"] == "memory":
             big = p["large"]
             out.append(f"- N = {big['n']}, {big['steps']} steps: peak RSS {big['peak_rss_mb']:.0f} MB "

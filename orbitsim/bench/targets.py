@@ -128,7 +128,8 @@ def _sampling(doc: Doc) -> dict[str, Any]:
     over = p["overhead"]
     margin = SAMPLING_OVERHEAD / over if over > 0 else float("inf")
     return _row("sampling_overhead", label, f"< {SAMPLING_OVERHEAD:.0%}", over,
-                f"{over:+.1%} (every {p['every']}, N = {p['n']})", margin, p["group"])
+                f"{over:+.1%} (CPU time {p.get('overhead_cpu', float('nan')):+.1%}; every {p['every']}, "
+                f"N = {p['n']})", margin, p["group"])
 
 
 def _memory_large(doc: Doc) -> dict[str, Any]:

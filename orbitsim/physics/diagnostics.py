@@ -16,8 +16,9 @@ additions). What can be is the terms: long rows compute ``m_j / r_ij`` a block o
 :data:`TERM_BLOCK` at a time into a buffer, where the square roots and divisions run as vector
 instructions (each is correctly rounded, so a lane gives the bits of the scalar operation), and
 then add the buffer in order. Same terms, same order of addition: the same bits as the plain loop,
-several times faster (benchmarks/README.md). The parallel version deals the rows out in strides,
-so every thread gets a fair share of the triangle rather than its long or its short end.
+1.4x faster per core (measured at N = 100 ... 16384; the in-order additions, one per 3-cycle
+latency, are now the limit). The parallel version deals the rows out in strides, so every thread
+gets a fair share of the triangle: split into halves, the first thread had three quarters of it.
 """
 
 from __future__ import annotations
@@ -52,22 +53,28 @@ def kinetic_energy(vel, m):
 
 
 @jit
-def _potential_row(pos, m, eps2, i):
-    x = pos[0]
-    y = pos[1]
-    z = pos[2]
-    row = 0.0
-    for j in range(i + 1, m.shape[0]):
-        dx = x[j] - x[i]
-        dy = y[j] - y[i]
-        dz = z[j] - z[i]
-        row += m[j] / np.sqrt(dx * dx + dy * dy + dz * dz + eps2)
-    return m[i] * row
+def _potential_small(pos, m, eps2):
+    """sum_i m_i sum_{j>i} m_j / r_ij with every row in this one call, indexing the (3, N) array.
+
+    No call and no row views per row: 174 ns against 180 ns at N = 9 (measured). The terms and
+    their order are those of the buffered rows, so both give the same bits.
+    """
+    n = m.shape[0]
+    total = 0.0
+    for i in range(n):
+        row = 0.0
+        for j in range(i + 1, n):
+            dx = pos[0, j] - pos[0, i]
+            dy = pos[1, j] - pos[1, i]
+            dz = pos[2, j] - pos[2, i]
+            row += m[j] / np.sqrt(dx * dx + dy * dy + dz * dz + eps2)
+        total += m[i] * row
+    return total
 
 
 @jit
 def _potential_row_buffered(pos, m, eps2, i, buf):
-    """:func:`_potential_row` with its terms computed a block at a time into ``buf`` (same bits)."""
+    """m_i sum_{j>i} m_j / r_ij, the terms computed a block at a time into ``buf``, then added in order."""
     x = pos[0]
     y = pos[1]
     z = pos[2]
@@ -91,14 +98,12 @@ def _potential_row_buffered(pos, m, eps2, i, buf):
 @jit
 def _potential_serial(pos, m, G, eps2):
     n = m.shape[0]
-    total = 0.0
     if n < BUFFERED_POTENTIAL_MIN_N:
-        for i in range(n):
-            total += _potential_row(pos, m, eps2, i)
-    else:
-        buf = np.empty(TERM_BLOCK)  # one small allocation per evaluation, none per row
-        for i in range(n):
-            total += _potential_row_buffered(pos, m, eps2, i, buf)
+        return -G * _potential_small(pos, m, eps2)
+    total = 0.0
+    buf = np.empty(TERM_BLOCK)  # one small allocation per evaluation, none per row
+    for i in range(n):
+        total += _potential_row_buffered(pos, m, eps2, i, buf)
     return -G * total
 
 

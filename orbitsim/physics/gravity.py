@@ -11,7 +11,7 @@ coordinate is its own contiguous row (structure of arrays: 4.4x faster than ``(N
 
 Each pair is computed once (Newton's third law): row i sums over j > i and scatters the equal and
 opposite term into j. The rows are cut into ``n_blocks(N)`` blocks of about equal pair counts; each
-block accumulates into its own private slab of ``scratch`` and the slabs are added in block order.
+block accumulates into its own private slab and the slabs are added in block order.
 The block partition depends on N only, never on the thread count, so the serial and the ``prange``
 kernel produce identical bits, and so do 1 and 2 threads.
 
@@ -37,6 +37,9 @@ from orbitsim._jit import jit, jit_force, jit_parallel
 
 #: Smallest N for which the parallel kernel is faster than the serial one on this machine
 #: (measured crossover: see benchmarks/README.md; at N = 128 the thread start-up still dominates).
+#: Re-measured with the two-row kernel: 16 blocks on 2 threads tie the one-block rows at N = 192-256
+#: and beat them by 9% at 384, 23% at 512. The margin is kept on purpose: on a busy machine every
+#: parallel region can wait a scheduler timeslice for its second thread.
 PARALLEL_MIN_N = 384
 
 #: Largest N summed over all ordered pairs by :func:`_all_pairs` (one block only). Measured per
