@@ -255,7 +255,8 @@ class Simulation:
             )
             elapsed = time.perf_counter() - start
             self.steps_done = int(n_done)
-            i += int(np.count_nonzero(record[: _consumed(record, written, finite)]))
+            # Every recorded target is one sample, so the samples written are the targets consumed.
+            i += int(written)
             if written or (yield_empty and finite):
                 yield buffers.chunk(int(written))
             if not finite:
@@ -267,14 +268,6 @@ class Simulation:
         """Indices of bodies whose position or velocity is not finite."""
         bad = ~(np.all(np.isfinite(self.pos), axis=0) & np.all(np.isfinite(self.vel), axis=0))
         return [int(k) for k in np.flatnonzero(bad)]
-
-
-def _consumed(record: np.ndarray, written: int, finite: bool) -> int:
-    """How many entries of ``record`` a call got through (all, unless it stopped on a bad sample)."""
-    if finite:
-        return record.size
-    seen = np.cumsum(record)
-    return int(np.searchsorted(seen, written + 1))
 
 
 def _plan_call(

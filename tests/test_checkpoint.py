@@ -14,6 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from test_checkpoint_kill import assert_same_datasets
 
 from orbitsim.checkpoint import (
     CheckpointError,
@@ -46,19 +47,6 @@ CHECKPOINTED = {**SYSTEM, "output": {"every": 250, "checkpoint": {"every": 2000}
 
 def scenario(doc: dict, **changes: object):
     return scenario_from_dict({**doc, **changes})
-
-
-def datasets(path: Path) -> dict[str, np.ndarray]:
-    found: dict[str, np.ndarray] = {}
-    with h5py.File(path, "r") as f:
-        f.visititems(lambda name, obj: found.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
-    return found
-
-
-def assert_same_datasets(a: Path, b: Path) -> None:
-    da, db = datasets(a), datasets(b)
-    assert sorted(da) == sorted(db)
-    assert not [n for n in da if not (da[n].dtype == db[n].dtype and np.array_equal(da[n], db[n]))]
 
 
 def stop_after(calls: int):
