@@ -20,23 +20,22 @@ interrupted by a signal (130 SIGINT, 143 SIGTERM), 1 when stopped by ``stop()``.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import shutil
 import signal
-import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING, Any
 
 from orbitsim.scenario import Scenario, ScenarioError
+from orbitsim.stopping import Stopper, StopRequest
 
 if TYPE_CHECKING:
     from orbitsim.checkpoint.sinks import RunStart
+    from orbitsim.sampling import SamplePlan
     from orbitsim.simulation import SampleChunk, Simulation
 
 __all__ = ["EXIT_DIVERGED", "OutputError", "RunSummary", "default_output", "run_scenario", "trace_attrs"]
@@ -44,7 +43,6 @@ __all__ = ["EXIT_DIVERGED", "OutputError", "RunSummary", "default_output", "run_
 EXIT_OK = 0
 EXIT_STOPPED = 1
 EXIT_DIVERGED = 3
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 class OutputError(ValueError):
@@ -98,7 +96,7 @@ def trace_attrs(scenario: Scenario, threads: int) -> dict[str, Any]:
     return attrs
 
 
-def _check_output(scenario: Scenario, output: Path, force: bool, n_samples: int) -> None:
+def _check_output(scenario: Scenario, output: Path, force: bool, plan: SamplePlan) -> None:
     if output.is_dir():
         raise OutputError(f"{output}: is a directory; give a file name such as {output / scenario.name}.h5")
     if output.exists() and not force:
@@ -112,92 +110,13 @@ def _check_output(scenario: Scenario, output: Path, force: bool, n_samples: int)
 
     check_side_files(output, force)
     if scenario.record_positions:
-        need = 2 * 3 * 8 * scenario.n_bodies * n_samples  # positions and velocities, uncompressed
+        need = 2 * 3 * 8 * scenario.n_bodies * plan.count()  # positions and velocities, uncompressed
         need *= 2 if scenario.checkpoints else 1  # the journal and the trace built from it coexist at the end
         free = shutil.disk_usage(output.parent).free
         if need > free:
             raise ScenarioError(f"recording positions needs about {need / 2**30:.3g} GiB but {output.parent} has "
                                 f"{free / 2**30:.3g} GiB free: set positions: false or sample less often",
                                 file=scenario.source, key="output.positions")
-
-
-class _StopRequest(BaseException):
-    """Raised by the signal handler to unwind a run that is computing (see :class:`_Stopper`)."""
-
-
-class _Stopper:
-    """SIGINT/SIGTERM handling for one run: stop promptly, lose nothing, never cut a write short.
-
-    The handler records the signal. What happens next depends on where the run is:
-
-    * in a critical section (appending to the trace, user callbacks): nothing until it ends,
-      then the stop takes effect;
-    * computing chunks: the runner stops at the next chunk of samples, which arrives within about
-      0.2 s when samples are dense, so every sample taken is kept. With sparse samples the next
-      chunk may be minutes away, so a :data:`GRACE_S` alarm then raises :class:`_StopRequest`
-      between two jitted calls (Python runs handlers between bytecodes, never inside a jitted
-      call); at most the samples of the one call just finished are lost;
-    * anywhere else (a cold Numba compile takes seconds): :class:`_StopRequest` at once.
-
-    A second signal stops at once outside a critical section. Handlers can only be installed
-    from the main thread; elsewhere (Dask workers) only ``stop()`` applies. The previous handlers
-    are restored, and the alarm cancelled, on exit.
-    """
-
-    GRACE_S = 1.0
-
-    def __init__(self, enabled: bool, stop: Callable[[], bool] | None) -> None:
-        self.enabled = enabled and threading.current_thread() is threading.main_thread()
-        self.stop = stop
-        self.signum: int | None = None
-        self.depth = 0
-        self.in_chunks = False  # set while the simulation computes the next chunk
-        self.finished = False  # once the trace is closed, a signal has nothing left to stop
-        self._previous: dict[int, Any] = {}
-
-    def __enter__(self) -> _Stopper:
-        if self.enabled:
-            for signum in _STOP_SIGNALS:
-                self._previous[signum] = signal.signal(signum, self._handle)
-            if hasattr(signal, "setitimer"):
-                self._previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, self._alarm)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if signal.SIGALRM in self._previous:
-            signal.setitimer(signal.ITIMER_REAL, 0.0)
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-
-    def _handle(self, signum: int, frame: FrameType | None) -> None:
-        repeated = self.signum is not None
-        self.signum = self.signum or signum
-        if self.depth > 0 or self.finished:
-            return
-        if self.in_chunks and not repeated and signal.SIGALRM in self._previous:
-            signal.setitimer(signal.ITIMER_REAL, self.GRACE_S)
-            return
-        raise _StopRequest
-
-    def _alarm(self, signum: int, frame: FrameType | None) -> None:
-        if self.signum is not None and self.depth == 0 and not self.finished:
-            raise _StopRequest
-
-    @contextlib.contextmanager
-    def critical(self, *, stop_after: bool = True) -> Iterator[None]:
-        """A section a signal must not cut short. When it ends, a pending stop raises if
-        ``stop_after`` (else the caller polls :meth:`requested`)."""
-        self.depth += 1
-        try:
-            yield
-        finally:
-            self.depth -= 1
-        if stop_after and self.depth == 0 and self.signum is not None:
-            raise _StopRequest
-
-    def requested(self) -> bool:
-        """True once a signal arrived or ``stop()`` says so."""
-        return self.signum is not None or bool(self.stop and self.stop())
 
 
 def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force: bool = False,
@@ -248,12 +167,12 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
     from orbitsim.checkpoint.sinks import open_sink, remove_side_files
 
     output = Path(output) if output is not None else default_output(scenario)
-    plan = scenario.sample_steps()
+    plan = scenario.sample_plan()
     if start is None:
-        _check_output(scenario, output, force, len(plan))
+        _check_output(scenario, output, force, plan)
     else:
-        plan = plan[plan > start.checkpoint.last_sample_step]
-    with _Stopper(handle_signals, stop) as stopper:
+        plan = plan.after_step(start.checkpoint.last_sample_step)
+    with Stopper(handle_signals, stop) as stopper:
         with stopper.critical(stop_after=False):
             if start is None:
                 remove_side_files(output)  # a forced start over a checkpointed run must not resume it later
@@ -262,7 +181,7 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
         loop = _Loop(sink, scenario, progress, on_chunk, start, force)
         try:
             loop.run(plan, threads, stopper)
-        except _StopRequest:
+        except StopRequest:
             pass  # the trace is closed as interrupted below
         except BaseException:
             with stopper.critical(stop_after=False):
@@ -308,7 +227,7 @@ class _Loop:
     def diverged(self) -> bool:
         return bool(getattr(self.sim, "diverged", False))
 
-    def run(self, plan: Any, threads: int | None, stopper: _Stopper) -> None:
+    def run(self, plan: SamplePlan, threads: int | None, stopper: Stopper) -> None:
         if self.progress:
             self.progress(self.start_point.checkpoint.steps_done if self.start_point else 0, self.steps)
         if stopper.requested():
@@ -382,7 +301,7 @@ class _Loop:
         else:
             self.sink.abort()
 
-    def finish(self, output: Path, stopper: _Stopper) -> RunSummary:
+    def finish(self, output: Path, stopper: Stopper) -> RunSummary:
         wall = self.wall()
         status, code, message = "complete", EXIT_OK, ""
         steps_done = self.last_step

@@ -7,7 +7,9 @@ Everything here is written from the formulas, independently of the engine's kern
 * :func:`energy` is T + U with the Plummer-softened potential U = -G m_i m_j / sqrt(r^2 + eps^2);
 * ``step_<scheme>`` takes one step of each registered scheme in its textbook form; the
   compositions are written as *unmerged* sequences of whole DKD leapfrog substeps (the engine
-  merges neighbouring drifts), so they also test the merging.
+  merges neighbouring drifts), so they also test the merging;
+* ``sample_steps_every`` / ``sample_steps_interval`` build a whole sampling plan in one array,
+  as the engine did before its plans were produced block by block.
 
 The fourth-order weights come from Yoshida's closed form, computed here. The sixth- and
 eighth-order tables are imported from :mod:`orbitsim.integrators.composition`; their identities
@@ -16,6 +18,7 @@ eighth-order tables are imported from :mod:`orbitsim.integrators.composition`; t
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -168,3 +171,28 @@ def kepler_state(t: float, a: float, e: float, mu: float) -> tuple[np.ndarray, n
     x = np.array([a * (np.cos(E) - e), b * np.sin(E), 0.0])
     v = np.array([-a * np.sin(E) * edot, b * np.cos(E) * edot, 0.0])
     return x, v
+
+
+# --- sampling plans, built whole -------------------------------------------------------------
+
+
+def sample_steps_every(n_steps: int, every: int) -> np.ndarray:
+    """0, K, 2K, ... and always the last step, in one array."""
+    steps = np.arange(0, n_steps + 1, every, dtype=np.int64)
+    if steps[-1] != n_steps:
+        steps = np.append(steps, np.int64(n_steps))
+    return steps
+
+
+def sample_steps_interval(n_steps: int, dt: float, interval: float) -> np.ndarray:
+    """The last whole step at or before each k * interval, and the last step, in one array."""
+    t_end = n_steps * dt
+    k = np.arange(0, math.floor(t_end / interval) + 1, dtype=np.float64)
+    wanted = k * interval
+    steps = np.floor(wanted / dt).astype(np.int64)
+    steps -= (steps * dt > wanted).astype(np.int64)
+    steps += ((steps + 1) * dt <= wanted).astype(np.int64)
+    steps = np.unique(np.clip(steps, 0, n_steps))
+    if steps[-1] != n_steps:
+        steps = np.append(steps, np.int64(n_steps))
+    return steps

@@ -321,11 +321,11 @@ def test_resolve_output_strips_side_suffixes() -> None:
 def test_small_read_blocks_give_the_same_trace(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The journal and a source trace are read back block by block: block boundaries change nothing."""
     import orbitsim.checkpoint.sinks as sinks
-    import orbitsim.io.checkpoint as io_checkpoint
+    import orbitsim.io.journal as io_journal
 
     sc = scenario(CHECKPOINTED)
     run_scenario(sc, tmp_path / "ref.h5")
-    monkeypatch.setattr(io_checkpoint, "_JOURNAL_BLOCK_BYTES", 1000)  # a few records per block
+    monkeypatch.setattr(io_journal, "_JOURNAL_BLOCK_BYTES", 1000)  # a few records per block
     monkeypatch.setattr(sinks, "_COPY_BLOCK_BYTES", 1000)
     run_scenario(sc, tmp_path / "out.h5", stop=stop_after(1))
     plan = prepare_resume(tmp_path / "out.h5")

@@ -28,6 +28,7 @@ import numpy as np
 
 from orbitsim._version import __version__
 from orbitsim.analysis.record import RunRecord
+from orbitsim.io.schema import py_value
 from orbitsim.io.trace import TRACE_FORMAT, TRACE_VERSION, Trace
 from orbitsim.provenance import provenance
 
@@ -96,20 +97,12 @@ def write_trace_group(parent: h5py.Group, path: str, record: RunRecord, *, names
     return group
 
 
-def _py(value: Any) -> Any:
-    if isinstance(value, bytes):
-        return value.decode("utf-8", errors="replace")
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 def read_trace_group(group: h5py.Group) -> Trace:
     """Read a trace-layout group (as written by :func:`write_trace_group`) into a Trace."""
-    if _py(group.attrs.get("format")) != TRACE_FORMAT:
+    if py_value(group.attrs.get("format")) != TRACE_FORMAT:
         raise ValueError(f"{group.name}: not a trace-layout group")
     arrays = {name: group[name][()] for name in _SERIES if name in group}
-    return Trace(attrs={k: _py(v) for k, v in group.attrs.items()},
+    return Trace(attrs={k: py_value(v) for k, v in group.attrs.items()},
                  names=tuple(group["bodies/names"].asstr()[()]), masses=group["bodies/masses"][()],
                  **arrays)
 
@@ -119,7 +112,7 @@ def list_trace_groups(f: h5py.File) -> list[str]:
     found: list[str] = []
 
     def visit(name: str, obj: Any) -> None:
-        if isinstance(obj, h5py.Group) and _py(obj.attrs.get("format")) == TRACE_FORMAT:
+        if isinstance(obj, h5py.Group) and py_value(obj.attrs.get("format")) == TRACE_FORMAT:
             found.append(name)
 
     f.visititems(visit)

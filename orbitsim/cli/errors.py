@@ -37,8 +37,8 @@ EXIT_DIVERGED = 3
 #: Errors that mean "fix your input": (module, class name).
 USER_ERRORS: tuple[tuple[str, str], ...] = (
     ("orbitsim.scenario.errors", "ScenarioError"),
-    ("orbitsim.io.trace", "TraceError"),
-    ("orbitsim.simulation", "SimulationError"),
+    ("orbitsim.io.schema", "TraceError"),  # re-exported by orbitsim.io.trace; CheckpointError is one
+    ("orbitsim.sampling", "SimulationError"),  # re-exported by orbitsim.simulation
     ("orbitsim.integrators.registry", "UnknownIntegratorError"),
     ("orbitsim.runner", "OutputError"),
 )

@@ -54,6 +54,6 @@ def _describe(spec: str, scenario: object) -> None:
     length = f"t_end = {s.t_end:g} ({s.steps} steps)" if s.t_end is not None else f"{s.steps} steps"
     sampling = f"every {s.sample_every} steps" if s.interval is None else f"every {s.interval:g} time units"
     click.echo(f"ok: {spec}: {s.name}, {s.n_bodies} bodies, {s.integrator}, dt = {s.dt:g}, {length}, "
-               f"{len(s.sample_steps())} samples ({sampling}), positions {'on' if s.record_positions else 'off'}")
+               f"{s.sample_plan().count()} samples ({sampling}), positions {'on' if s.record_positions else 'off'}")
     for note in s.notes():
         click.echo(f"  note: {note}")

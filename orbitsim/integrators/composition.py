@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbitsim._jit import jit
-from orbitsim.integrators.base import drift, kick, record_sample
+from orbitsim._jit import jit, jit_inline
+from orbitsim.integrators.base import drift, kick_drift, record_sample
 from orbitsim.physics.gravity import update_accelerations
 
 #: Order 2: the plain drift-kick-drift leapfrog, one substep.
@@ -66,7 +66,7 @@ def drift_coefficients(weights: np.ndarray) -> np.ndarray:
     return drifts
 
 
-@jit
+@jit_inline
 def compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks):
     """One composed step: drift(d_0 dt), then for each substep an evaluation, kick and drift.
 
@@ -76,8 +76,7 @@ def compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks):
     drift(pos, vel, dt * drifts[0])
     for s in range(kicks.shape[0]):
         update_accelerations(pos, m, force, acc)
-        kick(vel, acc, dt * kicks[s])
-        drift(pos, vel, dt * drifts[s + 1])
+        kick_drift(pos, vel, acc, dt * kicks[s], dt * drifts[s + 1])
 
 
 @jit

@@ -9,7 +9,7 @@ spirals outwards. It is here as the lesson's negative control, not for productio
 
 from __future__ import annotations
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.base import IntegratorSpec, record_sample
 from orbitsim.physics.gravity import update_accelerations
 
@@ -29,7 +29,7 @@ SPEC = IntegratorSpec(
 )
 
 
-@jit
+@jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One explicit Euler step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
     for c in range(3):

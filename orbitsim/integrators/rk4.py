@@ -16,7 +16,7 @@ Written with explicit loops over (3, N) slots: the same scheme in whole-array ex
 
 from __future__ import annotations
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.base import IntegratorSpec, record_sample
 from orbitsim.physics.gravity import update_accelerations
 
@@ -40,7 +40,7 @@ B_WEIGHTS = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
 C_NODES = (0.5, 0.5, 1.0)
 
 
-@jit
+@jit_inline
 def _stage(pos, x0, v0, k_x, acc, h, weight, sum_x, sum_v):
     """Accumulate the current stage (k_x, acc) with ``weight``, move pos to x0 + h k_x and
     k_x to the next stage's v0 + h k_v."""
@@ -54,7 +54,7 @@ def _stage(pos, x0, v0, k_x, acc, h, weight, sum_x, sum_v):
             k_x[c, i] = v0[c, i] + h * kv
 
 
-@jit
+@jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One RK4 step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit.
 

@@ -10,8 +10,8 @@ adjoint of explicit Euler's update order and the lesson's centre panel.
 
 from __future__ import annotations
 
-from orbitsim._jit import jit
-from orbitsim.integrators.base import IntegratorSpec, drift, kick, record_sample
+from orbitsim._jit import jit, jit_inline
+from orbitsim.integrators.base import IntegratorSpec, kick_drift, record_sample
 from orbitsim.physics.gravity import update_accelerations
 
 SPEC = IntegratorSpec(
@@ -29,11 +29,10 @@ SPEC = IntegratorSpec(
 )
 
 
-@jit
+@jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One kick-then-drift step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
-    kick(vel, acc, dt)
-    drift(pos, vel, dt)
+    kick_drift(pos, vel, acc, dt, dt)
     update_accelerations(pos, m, force, acc)
 
 

@@ -32,28 +32,35 @@ array of the integrator's ``work`` (scratch included, so any scheme that keeps s
 steps, e.g. ``wisdom_holman``'s mapping coordinates, continues exactly), flattened in order, with
 the nesting in the ``work_layout`` attribute. Attributes: see :data:`_COUNTERS` and
 :class:`Checkpoint`.
+
+The journal's code is in :mod:`orbitsim.io.journal`; its names are re-exported here.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import hashlib
 import json
 import os
 import socket
 import time
-import zlib
-from collections.abc import Iterator
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import h5py
 import numpy as np
 
 from orbitsim._version import __version__
-from orbitsim.io.trace import TraceError
+from orbitsim.io.durable import replace_durably
+from orbitsim.io.journal import (
+    Journal,
+    as_chunk,
+    check_journal,
+    journal_dtype,
+    journal_is_locked,
+    journal_path,
+)
+from orbitsim.io.schema import CheckpointError
 
 __all__ = [
     "CHECKPOINT_FORMAT",
@@ -81,21 +88,11 @@ CHECKPOINT_VERSION = 1
 #: Integer attributes of a checkpoint, beside the state arrays.
 _COUNTERS = ("steps_done", "steps_requested", "samples_written", "last_sample_step", "journal_bytes",
              "journal_crc32", "resumes")
-_JOURNAL_BLOCK_BYTES = 8 * 2**20  # read-back block: flat memory for any N
-
-
-class CheckpointError(TraceError):
-    """A checkpoint or journal is missing, damaged, foreign, or does not fit the run."""
 
 
 def checkpoint_path(output: str | os.PathLike) -> Path:
     """``<OUT>.ckpt``: the checkpoint of the run writing ``OUT``."""
     return Path(f"{os.fspath(output)}.ckpt")
-
-
-def journal_path(output: str | os.PathLike) -> Path:
-    """``<OUT>.journal``: the append-only samples of the run writing ``OUT``."""
-    return Path(f"{os.fspath(output)}.journal")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -226,9 +223,7 @@ def write_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
         f.attrs["format"] = CHECKPOINT_FORMAT
         f.attrs["format_version"] = CHECKPOINT_VERSION
         write_checkpoint_group(f, ckpt)
-    _fsync(tmp)
-    os.replace(tmp, path)
-    _fsync(path.parent, best_effort=True)
+    replace_durably(tmp, path)
 
 
 def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
@@ -255,185 +250,6 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
             return read_checkpoint_group(f, where)
     except OSError as err:
         raise CheckpointError(f"{where}: damaged or unreadable checkpoint ({err})") from None
-
-
-def _datasync(fd: int) -> None:
-    """Make a file's data (and the size needed to read it back) durable: ``fdatasync`` where the OS
-    has it, which skips the timestamps ``fsync`` would also write."""
-    getattr(os, "fdatasync", os.fsync)(fd)
-
-
-def _fsync(path: Path, *, best_effort: bool = False) -> None:
-    """fsync a file or directory (directories cannot be fsynced everywhere)."""
-    try:
-        fd = os.open(path, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-    except OSError:
-        if not best_effort:
-            raise
-
-
-def journal_dtype(n_bodies: int, record_positions: bool) -> np.dtype:
-    """One journal record: a sample's time, step, energies, momenta and, optionally, its state."""
-    fields: list[tuple[Any, ...]] = [("time", "<f8"), ("step", "<i8"), ("kinetic", "<f8"), ("potential", "<f8"),
-                                     ("momentum", "<f8", (3,)), ("angular_momentum", "<f8", (3,))]
-    if record_positions:
-        fields += [("positions", "<f8", (n_bodies, 3)), ("velocities", "<f8", (n_bodies, 3))]
-    return np.dtype(fields)
-
-
-class Journal:
-    """The append-only sample file of one run, locked against a second writer.
-
-    Parameters
-    ----------
-    path : path
-        ``<OUT>.journal``.
-    dtype : numpy.dtype
-        Record type (:func:`journal_dtype`).
-    keep_bytes, crc32 : int
-        0 to start a new journal (truncating any file there); otherwise the valid prefix named
-        by a checkpoint and its CRC-32: the file must hold that prefix intact, and is cut back
-        to it.
-
-    Raises
-    ------
-    CheckpointError
-        If another live process holds the journal, or its prefix is short or damaged.
-    """
-
-    def __init__(self, path: str | os.PathLike, dtype: np.dtype, *, keep_bytes: int = 0, crc32: int = 0) -> None:
-        self.path = Path(path)
-        self.dtype = dtype
-        if keep_bytes % dtype.itemsize:
-            raise CheckpointError(f"{self.path}: checkpoint names {keep_bytes} bytes, not a whole number of "
-                                  f"{dtype.itemsize}-byte records")
-        exists = self.path.exists()
-        if keep_bytes and not exists:
-            raise CheckpointError(f"{self.path}: the sample journal the checkpoint needs is missing")
-        self._fh = open(self.path, "r+b" if exists else "w+b")  # held open (and locked) for the run
-        try:
-            _lock(self._fh, self.path)
-            _check_prefix(self._fh, self.path, keep_bytes, crc32)
-            self._fh.truncate(keep_bytes)
-            self._fh.seek(keep_bytes)
-        except BaseException:
-            self._fh.close()
-            raise
-        self.bytes = keep_bytes
-        self.crc32 = crc32
-
-    @property
-    def records(self) -> int:
-        """Samples in the journal."""
-        return self.bytes // self.dtype.itemsize
-
-    def append(self, chunk: Any) -> None:
-        """Append the samples of a chunk (``time``, ``step``, ... attributes, as a SampleChunk)."""
-        rec = np.empty(len(chunk.time), dtype=self.dtype)
-        for name in self.dtype.names:
-            rec[name] = getattr(chunk, name)
-        data = rec.tobytes()
-        self._fh.write(data)
-        self.bytes += len(data)
-        self.crc32 = zlib.crc32(data, self.crc32)
-
-    def sync(self) -> None:
-        """Make every appended byte durable (before a checkpoint names it)."""
-        self._fh.flush()
-        _datasync(self._fh.fileno())
-
-    def chunks(self, stop: int | None = None) -> Iterator[SimpleNamespace]:
-        """Read the first ``stop`` records (default all) back, block by block, as chunk-like objects."""
-        self._fh.flush()
-        total = self.records if stop is None else stop
-        per_block = max(1, _JOURNAL_BLOCK_BYTES // self.dtype.itemsize)
-        with open(self.path, "rb") as fh:
-            for start in range(0, total, per_block):
-                rec = np.fromfile(fh, dtype=self.dtype, count=min(per_block, total - start))
-                yield as_chunk({name: rec[name] for name in self.dtype.names})
-
-    def close(self, *, delete: bool = False) -> None:
-        """Close (releasing the lock); ``delete`` removes the file first, while still locked."""
-        if self._fh.closed:
-            return
-        if delete:
-            self.path.unlink(missing_ok=True)
-        self._fh.close()
-
-
-def check_journal(path: str | os.PathLike, keep_bytes: int, crc32: int) -> None:
-    """Check, read-only, that the journal at ``path`` holds the prefix a checkpoint names.
-
-    Raises
-    ------
-    CheckpointError
-        If the journal is missing, shorter than ``keep_bytes`` or does not match ``crc32``.
-    """
-    try:
-        with open(path, "rb") as fh:
-            _check_prefix(fh, Path(path), keep_bytes, crc32)
-    except FileNotFoundError:
-        raise CheckpointError(f"{path}: the sample journal the checkpoint needs is missing") from None
-
-
-def _check_prefix(fh: Any, path: Path, keep_bytes: int, crc32: int) -> None:
-    size = os.fstat(fh.fileno()).st_size
-    if size < keep_bytes:
-        raise CheckpointError(f"{path}: damaged journal ({size} bytes, the checkpoint needs {keep_bytes})")
-    crc = 0
-    fh.seek(0)
-    left = keep_bytes
-    while left:
-        block = fh.read(min(left, _JOURNAL_BLOCK_BYTES))
-        if not block:
-            raise CheckpointError(f"{path}: damaged journal (short read)")
-        crc = zlib.crc32(block, crc)
-        left -= len(block)
-    if crc != crc32:
-        raise CheckpointError(f"{path}: damaged journal (its samples do not match the checkpoint's CRC-32)")
-
-
-def as_chunk(arrays: dict[str, np.ndarray]) -> SimpleNamespace:
-    """A chunk-like object for :meth:`orbitsim.io.trace.TraceWriter.append` (energy = T + U)."""
-    arrays.setdefault("positions", None)
-    arrays.setdefault("velocities", None)
-    return SimpleNamespace(energy=arrays["kinetic"] + arrays["potential"], **arrays)
-
-
-def _lock(fh: Any, path: Path) -> None:
-    """An exclusive advisory lock, dropped by the OS when the holder dies (SIGKILL included)."""
-    try:
-        import fcntl
-    except ImportError:  # Windows: no advisory locks; a concurrent resume is then the user's lookout
-        return
-    try:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        raise CheckpointError(f"{path}: another orbitsim process is writing this run; stop it first") from None
-
-
-def journal_is_locked(path: str | os.PathLike) -> bool:
-    """Whether a live process holds the journal at ``path`` (False if there is none)."""
-    try:
-        import fcntl
-    except ImportError:
-        return False
-    try:
-        fh = open(path, "rb")
-    except OSError:
-        return False
-    with fh:
-        try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return True
-        with contextlib.suppress(OSError):
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-    return False
 
 
 def layout_json(layout: Any) -> str:

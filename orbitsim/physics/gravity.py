@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_force, jit_parallel
+from orbitsim._jit import jit, jit_force, jit_inline, jit_parallel
 
 #: Smallest N for which the parallel kernel is faster than the serial one on this machine
 #: (measured crossover: see benchmarks/README.md; at N = 128 the thread start-up still dominates).
@@ -304,16 +304,17 @@ def make_force(G: float, softening: float, n: int) -> tuple[float, float, np.nda
     return (float(G), float(softening) ** 2, slabs, bounds)
 
 
-@jit
+@jit_inline
 def update_accelerations(pos, m, force, acc):
     """Accelerations at ``pos`` into ``acc`` from a force context made by :func:`make_force`.
 
-    This is the kernel every integrator step calls (as a module global, so callers cache). Small
-    systems go straight to :func:`_all_pairs`, the path :func:`accelerations_serial` takes for them
-    (same bits): Numba does not inline one jitted function into another, and at N = 5 the two call
-    layers skipped here, with their arguments and reference counts, were a third of a step
-    (measured, benchmarks/README.md). ``make_force`` gives every N <= SMALL_N_MAX one block, so the
-    block count need not be read.
+    This is the dispatch every integrator step calls (as a module global, so callers cache). It is
+    inlined into each step at Numba's IR level (:func:`orbitsim._jit.jit_inline`); the kernels
+    behind it stay calls, so their loops vectorise as compiled here. Small systems go straight to
+    :func:`_all_pairs`, the path :func:`accelerations_serial` takes for them (same bits): at N = 5
+    each call layer skipped, with its arguments and reference counts, was ~15% of a step
+    (measured, benchmarks/README.md). ``make_force`` gives every N <= SMALL_N_MAX one block, so
+    the block count need not be read.
     """
     if pos.shape[1] <= SMALL_N_MAX:
         _all_pairs(pos, m, force[0], force[1], acc)

@@ -17,7 +17,7 @@ import numpy as np
 
 from orbitsim.scenario.errors import ScenarioError
 
-__all__ = ["MISSING", "Fields", "describe", "join_path", "unknown_key_error"]
+__all__ = ["MISSING", "Fields", "check_count", "check_number", "describe", "join_path", "unknown_key_error"]
 
 
 class _Missing:
@@ -175,3 +175,10 @@ def check_number(value: Any, key: str, *, minimum: float | None = None, positive
     if minimum is not None and number < minimum:
         raise ScenarioError(f"must be >= {minimum:g}, got {value}", key=key)
     return number
+
+
+def check_count(value: Any, key: str) -> int:
+    """``value`` as a whole number >= 1 (a Python or numpy integer; never a bool)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ScenarioError(f"must be a whole number >= 1, got {describe(value)}", key=key)
+    return int(value)

@@ -13,15 +13,20 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from orbitsim.scenario.bodies import check_coincident, check_finite_state
 from orbitsim.scenario.errors import ScenarioError
-from orbitsim.scenario.fields import check_number, describe, unknown_key_error
+from orbitsim.scenario.fields import check_count, check_number, describe
+from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
+from orbitsim.scenario.timing import resolve_steps
 from orbitsim.scenario.yamlio import dump_value, format_float
+
+if TYPE_CHECKING:
+    from orbitsim.sampling import SamplePlan
 
 __all__ = ["DEFAULT_SAMPLES", "FRAMES", "POSITIONS_MAX_N", "Scenario", "resolve_steps"]
 
@@ -32,36 +37,6 @@ POSITIONS_MAX_N = 1000
 FRAMES = ("as_given", "barycentric")
 #: A name becomes the default output file name, so it must be a plain file name.
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
-#: t_end / dt within this relative distance of a whole number counts as whole: ``t_end = 1`` with
-#: ``dt = 0.1`` gives 9.999999999999998 by round-off and must mean 10 steps, not 9.
-_WHOLE_STEPS_RTOL = 1e-9
-
-_OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "steps", "t_end", "every",
-                "interval", "record_positions", "softening", "G", "names", "masses", "positions",
-                "velocities", "source", "checkpoint_every", "checkpoint_seconds")
-
-
-def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
-    """Whole steps of ``dt`` that fit in ``t_end``, and whether they fill it exactly.
-
-    Raises
-    ------
-    ScenarioError
-        When not even one step fits.
-    """
-    ratio = t_end / dt
-    nearest = round(ratio)
-    if nearest >= 1 and abs(ratio - nearest) <= _WHOLE_STEPS_RTOL * ratio:
-        return int(nearest), True
-    steps = math.floor(ratio)
-    # floor of a rounded quotient can be one off; the definition is steps * dt <= t_end.
-    while steps > 0 and steps * dt > t_end:
-        steps -= 1
-    while (steps + 1) * dt <= t_end:
-        steps += 1
-    if steps < 1:
-        raise ScenarioError(f"t_end = {t_end:g} is shorter than one step (dt = {dt:g})", key="t_end")
-    return steps, False
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,9 +178,7 @@ class Scenario:
 
     def _validate_time(self) -> None:
         self._set("dt", check_number(self.dt, "dt", positive=True))
-        if isinstance(self.steps, bool) or not isinstance(self.steps, int | np.integer) or self.steps < 1:
-            raise ScenarioError(f"must be a whole number >= 1, got {describe(self.steps)}", key="steps")
-        self._set("steps", int(self.steps))
+        self._set("steps", check_count(self.steps, "steps"))
         if self.t_end is not None:
             self._set("t_end", check_number(self.t_end, "t_end", positive=True))
             expected, _ = resolve_steps(self.t_end, self.dt)
@@ -215,9 +188,7 @@ class Scenario:
         if self.every is not None and self.interval is not None:
             raise ScenarioError("give only one of every or interval, not both", key="output.interval")
         if self.every is not None:
-            if isinstance(self.every, bool) or not isinstance(self.every, int | np.integer) or self.every < 1:
-                raise ScenarioError(f"must be a whole number >= 1, got {describe(self.every)}", key="output.every")
-            self._set("every", int(self.every))
+            self._set("every", check_count(self.every, "output.every"))
         if self.interval is not None:
             self._set("interval", check_number(self.interval, "output.interval", positive=True))
         self._validate_checkpoint()
@@ -225,10 +196,7 @@ class Scenario:
     def _validate_checkpoint(self) -> None:
         every, seconds = self.checkpoint_every, self.checkpoint_seconds
         if every is not None:
-            if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
-                raise ScenarioError(f"must be a whole number >= 1, got {describe(every)}",
-                                    key="output.checkpoint.every")
-            self._set("checkpoint_every", int(every))
+            self._set("checkpoint_every", check_count(every, "output.checkpoint.every"))
         if seconds is not None:
             self._set("checkpoint_seconds", check_number(seconds, "output.checkpoint.seconds", positive=True))
 
@@ -261,13 +229,18 @@ class Scenario:
         """Whether ``output.checkpoint`` asks for periodic checkpoints."""
         return self.checkpoint_every is not None or self.checkpoint_seconds is not None
 
-    def sample_steps(self) -> np.ndarray:
-        """Step indices of the samples: 0 first, ``steps`` last (int64, increasing)."""
-        from orbitsim.simulation import sample_steps_every, sample_steps_interval
+    def sample_plan(self) -> SamplePlan:
+        """The sampling plan: step 0 first, ``steps`` last, produced block by block."""
+        from orbitsim.sampling import EveryPlan, IntervalPlan
 
         if self.interval is not None:
-            return sample_steps_interval(self.steps, self.dt, self.interval)
-        return sample_steps_every(self.steps, int(self.sample_every))
+            return IntervalPlan(self.steps, self.dt, self.interval)
+        return EveryPlan(self.steps, int(self.sample_every))
+
+    def sample_steps(self) -> np.ndarray:
+        """Step indices of the samples: 0 first, ``steps`` last (int64, increasing; the whole plan
+        in memory, so prefer :meth:`sample_plan` for long runs)."""
+        return self.sample_plan().steps()
 
     def notes(self) -> list[str]:
         """Things a user should know before running, one line each (may be empty)."""
@@ -352,50 +325,4 @@ class Scenario:
         ScenarioError
             For an unknown field or an invalid value (naming the field).
         """
-        changes = {k: v for k, v in changes.items() if v is not None}
-        for key in changes:
-            if key not in _OVERRIDABLE:
-                raise unknown_key_error(key, "", _OVERRIDABLE).located(self.source)
-        try:
-            _resolve_integrator_change(self, changes)
-            _resolve_time_change(self, changes)
-        except ScenarioError as err:
-            raise err.located(self.source) from None
-        if "every" in changes:
-            changes["interval"] = None
-        elif "interval" in changes:
-            changes["every"] = None
-        return dataclasses.replace(self, **changes)
-
-
-def _resolve_integrator_change(scenario: Scenario, changes: dict[str, Any]) -> None:
-    integrator = changes.get("integrator")
-    if isinstance(integrator, Mapping):
-        settings = {k: v for k, v in integrator.items() if k != "name"}
-        if "name" not in integrator:
-            raise ScenarioError("an integrator mapping needs a name", key="integrator.name")
-        changes["integrator"] = integrator["name"]
-        changes.setdefault("integrator_settings", settings)
-    if "integrator" in changes and "integrator_settings" not in changes:
-        from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name
-
-        try:
-            new = canonical_name(changes["integrator"])
-        except UnknownIntegratorError as err:
-            raise ScenarioError(str(err), key="integrator") from None
-        if new != scenario.integrator:
-            changes["integrator_settings"] = {}
-
-
-def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
-    if "steps" in changes and "t_end" in changes:
-        raise ScenarioError("give only one of steps or t_end, not both", key="t_end")
-    dt = check_number(changes.get("dt", scenario.dt), "dt", positive=True)
-    if "steps" in changes:
-        changes["t_end"] = None
-        return
-    t_end = changes.get("t_end", scenario.t_end)
-    if t_end is not None:
-        t_end = check_number(t_end, "t_end", positive=True)
-        changes["t_end"] = t_end
-        changes["steps"] = resolve_steps(t_end, dt)[0]
+        return dataclasses.replace(self, **resolve_overrides(self, changes))

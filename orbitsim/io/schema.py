@@ -1,0 +1,39 @@
+"""Identifiers, dataset names and errors of the ``orbitsim.trace`` format (documented in
+:mod:`orbitsim.io.trace`), shared by the writer, the reader and the checkpoint files."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["BODY_ARRAYS", "FINAL_STATUSES", "RESERVED_ATTRS", "SCALARS", "TRACE_FORMAT", "TRACE_VERSION", "VECTORS",
+           "CheckpointError", "TraceError", "py_value"]
+
+TRACE_FORMAT = "orbitsim.trace"
+TRACE_VERSION = 1
+FINAL_STATUSES = ("complete", "interrupted", "diverged")
+#: Root attributes only the writer sets.
+RESERVED_ATTRS = frozenset({"format", "format_version", "E0"})
+
+# Per-sample datasets, grouped by trailing shape: (), (3,), (N, 3).
+SCALARS = ("time", "step", "kinetic", "potential", "energy", "energy_error")
+VECTORS = ("momentum", "angular_momentum")
+BODY_ARRAYS = ("positions", "velocities")
+
+
+class TraceError(ValueError):
+    """A file is missing, unreadable, or not a supported orbitsim trace."""
+
+
+class CheckpointError(TraceError):
+    """A checkpoint or journal is missing, damaged, foreign, or does not fit the run."""
+
+
+def py_value(value: Any) -> Any:
+    """Turn attribute values read by h5py into plain Python objects where possible."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

@@ -1,0 +1,311 @@
+"""Writing an ``orbitsim.trace`` file (the format is documented in :mod:`orbitsim.io.trace`).
+
+Data go to ``<path>.tmp`` and are renamed onto ``<path>`` only in :meth:`TraceWriter.close`, so a
+file at ``<path>`` is always complete. Samples are buffered up to a bounded size and written
+block-wise, because resizing HDF5 datasets once per sample is slow; memory use stays flat.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import time as _time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from orbitsim._version import __version__
+from orbitsim.io.durable import replace_durably
+from orbitsim.io.schema import (
+    BODY_ARRAYS,
+    FINAL_STATUSES,
+    RESERVED_ATTRS,
+    SCALARS,
+    TRACE_FORMAT,
+    TRACE_VERSION,
+    VECTORS,
+)
+from orbitsim.provenance import provenance
+
+__all__ = ["TraceWriter"]
+
+_SERIES_CHUNK_ROWS = 1024  # 8-24 KiB chunks for the small series
+_BODY_CHUNK_BYTES = 512 * 1024  # keeps positions chunks under 1 MiB for any N
+_FLUSH_ROWS = 1024
+_FLUSH_BYTES = 8 * 1024 * 1024  # bounds the write buffer when N is large
+
+
+def _body_chunks(n_bodies: int) -> tuple[int, int, int]:
+    """Chunk shape for (S, N, 3) datasets: as many samples as fit in ~512 KiB."""
+    per_sample = max(n_bodies, 1) * 3 * 8
+    if per_sample <= _BODY_CHUNK_BYTES:
+        return (min(_SERIES_CHUNK_ROWS, _BODY_CHUNK_BYTES // per_sample), max(n_bodies, 1), 3)
+    # One sample alone exceeds the budget: split along the body axis too.
+    return (1, _BODY_CHUNK_BYTES // 24, 3)
+
+
+def _attr_value(key: str, value: Any) -> Any:
+    """Convert `value` into something h5py stores as an attribute, or raise TypeError."""
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if isinstance(value, str | bool | int | float | np.generic | np.ndarray):
+        return value
+    raise TypeError(f"trace attribute {key!r}: unsupported type {type(value).__name__}")
+
+
+class TraceWriter:
+    """Stream samples of a run into an ``orbitsim.trace`` HDF5 file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Final location of the trace. Data are written to ``<path>.tmp`` until `close`.
+    attrs : Mapping[str, Any]
+        Run description stored as root attributes (``scenario``, ``integrator``,
+        ``dt``, ``steps_requested``, ``G``, ``softening``, ``units``, ...).
+        ``format``, ``format_version`` and ``E0`` are reserved.
+    names : Sequence[str]
+        Body names, length `n_bodies`.
+    masses : numpy.ndarray
+        Body masses, shape ``(n_bodies,)``.
+    n_bodies : int
+        Number of bodies N.
+    record_positions : bool
+        Whether ``positions`` and ``velocities`` are stored (then every appended
+        chunk must carry both).
+    overwrite : bool, default False
+        Replace an existing file at `path` on `close`.
+
+    Raises
+    ------
+    FileExistsError
+        If `path` exists and `overwrite` is False (nothing is created).
+    FileNotFoundError
+        If the directory of `path` does not exist.
+    ValueError
+        If `names` or `masses` do not match `n_bodies`, or `attrs` uses a reserved key.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, attrs: Mapping[str, Any], names: Sequence[str],
+                 masses: np.ndarray, n_bodies: int, record_positions: bool,
+                 overwrite: bool = False) -> None:
+        self.path = Path(path)
+        self.tmp_path = self.path.with_name(self.path.name + ".tmp")
+        self._overwrite = overwrite
+        if self.path.exists() and not overwrite:
+            raise FileExistsError(f"{self.path}: trace file already exists (use overwrite to replace it)")
+        if not self.path.parent.is_dir():
+            raise FileNotFoundError(f"{self.path}: directory {self.path.parent} does not exist")
+        masses = np.asarray(masses, dtype=np.float64)
+        if len(names) != n_bodies or masses.shape != (n_bodies,):
+            raise ValueError(f"{self.path}: expected {n_bodies} names and masses, "
+                             f"got {len(names)} names and masses of shape {masses.shape}")
+        bad = RESERVED_ATTRS.intersection(attrs)
+        if bad:
+            raise ValueError(f"{self.path}: reserved trace attributes {sorted(bad)}")
+        self.n_bodies = n_bodies
+        self.record_positions = record_positions
+        # Per-sample shape of every per-sample dataset, in file order.
+        self._trailing: dict[str, tuple[int, ...]] = {name: () for name in SCALARS}
+        self._trailing.update({name: (3,) for name in VECTORS})
+        if record_positions:
+            self._trailing.update({name: (n_bodies, 3) for name in BODY_ARRAYS})
+        self._t_start = _time.perf_counter()
+        self._E0: float | None = None
+        self._last_step: int | None = None
+        self._written = 0
+        self._buffer: list[dict[str, np.ndarray]] = []
+        self._buffer_rows = 0
+        self._buffer_bytes = 0
+        # Truncating a stale .tmp from a crashed run is intended; HDF5 file locking
+        # refuses if another live writer still holds it.
+        self._file: h5py.File | None = h5py.File(self.tmp_path, "w")
+        try:
+            self._init_file(self._file, attrs, names, masses)
+        except BaseException:
+            self.abort()
+            raise
+
+    def _init_file(self, f: h5py.File, attrs: Mapping[str, Any], names: Sequence[str],
+                   masses: np.ndarray) -> None:
+        root: dict[str, Any] = {"steps_done": 0, "wall_time_s": 0.0, "message": ""}
+        root.update({f"provenance_{k}": v for k, v in provenance().items()})
+        root.update(attrs)
+        if "scenario" in root and "scenario_sha256" not in root:
+            root["scenario_sha256"] = hashlib.sha256(str(root["scenario"]).encode()).hexdigest()
+        root.update(format=TRACE_FORMAT, format_version=TRACE_VERSION,
+                    orbitsim_version=__version__, status="running")
+        for key, value in root.items():
+            f.attrs[key] = _attr_value(key, value)
+        bodies = f.create_group("bodies")
+        bodies.create_dataset("names", data=list(names), dtype=h5py.string_dtype("utf-8"))
+        bodies.create_dataset("masses", data=masses)
+        for name, tail in self._trailing.items():
+            chunks = _body_chunks(self.n_bodies) if len(tail) == 2 else (_SERIES_CHUNK_ROWS, *tail)
+            f.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail), chunks=chunks,
+                             dtype=np.int64 if name == "step" else np.float64,
+                             compression="gzip", compression_opts=4, shuffle=True)
+
+    @property
+    def samples_written(self) -> int:
+        """Number of samples appended so far (buffered ones included)."""
+        return self._written
+
+    @property
+    def closed(self) -> bool:
+        """Whether the writer has been closed or aborted."""
+        return self._file is None
+
+    def _require_open(self) -> h5py.File:
+        if self._file is None:
+            raise RuntimeError(f"{self.path}: trace writer is closed")
+        return self._file
+
+    def _normalise(self, chunk: Any) -> dict[str, np.ndarray]:
+        """Copy one chunk into float64/int64 arrays of validated shapes."""
+        out: dict[str, np.ndarray] = {}
+        for name, tail in self._trailing.items():
+            if name == "energy_error":
+                continue  # derived by the writer
+            value = getattr(chunk, name, None)
+            if value is None:
+                raise ValueError(f"{self.path}: chunk.{name} is required but is None")
+            # Copy: callers typically reuse their sample buffers. A single sample may
+            # come without its leading axis.
+            arr = np.array(value, dtype=np.int64 if name == "step" else np.float64)
+            out[name] = arr[None] if arr.shape == tail else arr
+        k = out["time"].shape[0] if out["time"].ndim == 1 else 0
+        wrong = {n: a.shape for n, a in out.items() if a.shape != (k, *self._trailing[n])}
+        if k < 1 or wrong:
+            raise ValueError(f"{self.path}: chunk has {k} samples; bad shapes {wrong}")
+        return out
+
+    def append(self, chunk: Any) -> None:
+        """Append ``k >= 1`` samples.
+
+        Parameters
+        ----------
+        chunk : object
+            Any object with array attributes ``time``, ``step``, ``kinetic``,
+            ``potential``, ``energy`` (k,), ``momentum``, ``angular_momentum`` (k, 3)
+            and ``positions``, ``velocities`` (k, N, 3) or None. The arrays are copied.
+        """
+        f = self._require_open()
+        data = self._normalise(chunk)
+        energy = data["energy"]
+        if self._E0 is None:
+            self._E0 = float(energy[0])
+            f.attrs["E0"] = self._E0
+        delta = energy - self._E0
+        data["energy_error"] = delta / abs(self._E0) if self._E0 != 0.0 else delta
+        self._buffer.append(data)
+        self._buffer_rows += energy.shape[0]
+        self._buffer_bytes += sum(a.nbytes for a in data.values())
+        self._written += energy.shape[0]
+        self._last_step = int(data["step"][-1])
+        if self._buffer_rows >= _FLUSH_ROWS or self._buffer_bytes >= _FLUSH_BYTES:
+            self._write_buffer()
+
+    def _write_buffer(self) -> None:
+        if not self._buffer:
+            return
+        f = self._require_open()
+        for name in self._buffer[0]:
+            block = np.concatenate([d[name] for d in self._buffer])
+            ds = f[name]
+            start = ds.shape[0]
+            ds.resize(start + block.shape[0], axis=0)
+            ds[start:] = block
+        self._buffer.clear()
+        self._buffer_rows = self._buffer_bytes = 0
+
+    def set_attrs(self, **kw: Any) -> None:
+        """Update root attributes mid-run (``format``, ``format_version``, ``E0`` are reserved)."""
+        f = self._require_open()
+        bad = RESERVED_ATTRS.intersection(kw)
+        if bad:
+            raise ValueError(f"{self.path}: reserved trace attributes {sorted(bad)}")
+        for key, value in kw.items():
+            f.attrs[key] = _attr_value(key, value)
+
+    def new_group(self, name: str) -> h5py.Group:
+        """An empty group ``name`` in the open file, replacing one of that name (e.g. ``checkpoint``)."""
+        f = self._require_open()
+        if name in self._trailing or name == "bodies":
+            raise ValueError(f"{self.path}: {name!r} is a dataset of the trace format")
+        if name in f:
+            del f[name]
+        return f.create_group(name)
+
+    def flush(self) -> None:
+        """Write buffered samples and flush HDF5 buffers to the temporary file."""
+        self._write_buffer()
+        self._require_open().flush()
+
+    def close(self, status: str = "complete", *, steps_done: int | None = None,
+              wall_time_s: float | None = None, message: str = "") -> Path:
+        """Finalise the trace and atomically move it onto `path`.
+
+        Parameters
+        ----------
+        status : {"complete", "interrupted", "diverged"}
+            Final run status.
+        steps_done : int, optional
+            Steps integrated; default: the step index of the last sample, if any.
+        wall_time_s : float, optional
+            Run duration; default: seconds elapsed since the writer was created.
+        message : str
+            Free text for the ``message`` attribute.
+
+        Returns
+        -------
+        pathlib.Path
+            The final path of the trace.
+        """
+        if status not in FINAL_STATUSES:
+            raise ValueError(f"{self.path}: status must be one of {FINAL_STATUSES}, got {status!r}")
+        f = self._require_open()
+        if steps_done is None:
+            steps_done = self._last_step
+        if wall_time_s is None:
+            wall_time_s = _time.perf_counter() - self._t_start
+        self.flush()
+        final = {"status": status, "wall_time_s": float(wall_time_s), "message": message}
+        if steps_done is not None:
+            final["steps_done"] = int(steps_done)
+        for key, value in final.items():
+            f.attrs[key] = value
+        f.close()
+        self._file = None
+        if self.path.exists() and not self._overwrite:
+            # Someone created the target during the run: keep our data in .tmp instead of clobbering.
+            raise FileExistsError(f"{self.path}: appeared during the run; trace left at {self.tmp_path}")
+        replace_durably(self.tmp_path, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        """Close and delete the temporary file, leaving nothing behind (no-op once closed)."""
+        if self._file is None:
+            return
+        try:
+            self._file.close()
+        finally:
+            self._file = None
+            self.tmp_path.unlink(missing_ok=True)
+
+    def __enter__(self) -> TraceWriter:
+        return self
+
+    def __exit__(self, exc_type: Any, exc: BaseException | None, tb: Any) -> None:
+        """Close as ``complete``; on an exception, ``interrupted`` if samples exist, else abort."""
+        if self._file is None:
+            return
+        if exc_type is None:
+            self.close("complete")
+        elif self._written > 0:
+            self.close("interrupted", message=f"{exc_type.__name__}: {exc}")
+        else:
+            self.abort()

@@ -1,0 +1,161 @@
+"""What a run produces: chunks of samples as they come, and the collected result of a whole run.
+
+The jitted ``run`` of an integrator writes samples into the :class:`SampleBuffers` of one call;
+:class:`~orbitsim.simulation.Simulation` hands them out as :class:`SampleChunk` copies, and
+:func:`~orbitsim.simulation.simulate` joins the chunks into a :class:`SimulationResult`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from orbitsim.integrators.base import SCALAR_COLUMNS
+
+if TYPE_CHECKING:
+    from orbitsim.simulation import Simulation
+
+__all__ = ["SampleBuffers", "SampleChunk", "SimulationResult", "collect_result", "relative_energy_error"]
+
+
+@dataclass
+class SampleChunk:
+    """Consecutive samples of a run; ``positions``/``velocities`` are (k, N, 3) or None."""
+
+    time: np.ndarray
+    step: np.ndarray
+    kinetic: np.ndarray
+    potential: np.ndarray
+    momentum: np.ndarray
+    angular_momentum: np.ndarray
+    positions: np.ndarray | None
+    velocities: np.ndarray | None
+
+    @property
+    def energy(self) -> np.ndarray:
+        """Total energy T + U of each sample."""
+        return self.kinetic + self.potential
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
+
+
+@dataclass
+class SimulationResult:
+    """Everything a finished (or stopped) run produced, as numpy arrays.
+
+    ``energy_error`` is (E - E0) / |E0| (or E - E0 when E0 == 0). ``status`` is ``complete``,
+    ``diverged`` or ``interrupted``.
+    """
+
+    integrator: str
+    dt: float
+    G: float
+    softening: float
+    time: np.ndarray
+    step: np.ndarray
+    kinetic: np.ndarray
+    potential: np.ndarray
+    energy: np.ndarray
+    energy_error: np.ndarray
+    momentum: np.ndarray
+    angular_momentum: np.ndarray
+    positions: np.ndarray | None
+    velocities: np.ndarray | None
+    final_positions: np.ndarray
+    final_velocities: np.ndarray
+    steps_done: int
+    status: str
+    message: str
+    wall_time_s: float
+
+    @property
+    def max_abs_energy_error(self) -> float:
+        """max |dE/E| over the samples (nan when there are none)."""
+        return float(np.max(np.abs(self.energy_error))) if self.energy_error.size else math.nan
+
+
+def relative_energy_error(energy: np.ndarray, e0: float) -> np.ndarray:
+    """(E - E0) / |E0|, or E - E0 when E0 is exactly zero."""
+    scale = abs(e0) if e0 != 0.0 else 1.0
+    return (np.asarray(energy) - e0) / scale
+
+
+class SampleBuffers:
+    """Reusable output arrays for one jitted call: ``size`` samples of ``n`` bodies."""
+
+    def __init__(self, size: int, n: int, record_positions: bool) -> None:
+        self.times = np.zeros(size)
+        self.steps = np.zeros(size, dtype=np.int64)
+        self.scalars = np.zeros((size, len(SCALAR_COLUMNS)))
+        self.snapshots = np.zeros((size if record_positions else 0, 2, 3, n))
+
+    def views(self, rows: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The ``out`` tuple of an integrator's ``run``."""
+        return (self.times, self.steps, self.scalars, self.snapshots, rows)
+
+    def chunk(self, k: int) -> SampleChunk:
+        """Copies of the first ``k`` samples (the buffers are overwritten by the next call)."""
+        has_state = self.snapshots.shape[0] > 0
+        return SampleChunk(
+            time=self.times[:k].copy(),
+            step=self.steps[:k].copy(),
+            kinetic=self.scalars[:k, 0].copy(),
+            potential=self.scalars[:k, 1].copy(),
+            momentum=self.scalars[:k, 2:5].copy(),
+            angular_momentum=self.scalars[:k, 5:8].copy(),
+            positions=self.snapshots[:k, 0].transpose(0, 2, 1).copy() if has_state else None,
+            velocities=self.snapshots[:k, 1].transpose(0, 2, 1).copy() if has_state else None,
+        )
+
+
+def collect_result(sim: Simulation, parts: list[SampleChunk], record_positions: bool,
+                   wall: float) -> SimulationResult:
+    """Join the chunks of a run of ``sim`` into one :class:`SimulationResult`."""
+
+    def cat(name: str, shape: tuple[int, ...]) -> np.ndarray:
+        arrays = [getattr(p, name) for p in parts]
+        return np.concatenate(arrays) if arrays else np.zeros((0, *shape))
+
+    kinetic = cat("kinetic", ())
+    potential = cat("potential", ())
+    energy = kinetic + potential
+    e0 = float(energy[0]) if energy.size else 0.0
+    final_pos, final_vel = sim.state()
+    return SimulationResult(
+        integrator=sim.spec.name,
+        dt=sim.dt,
+        G=sim.G,
+        softening=sim.softening,
+        time=cat("time", ()),
+        step=cat("step", ()).astype(np.int64),
+        kinetic=kinetic,
+        potential=potential,
+        energy=energy,
+        energy_error=relative_energy_error(energy, e0),
+        momentum=cat("momentum", (3,)),
+        angular_momentum=cat("angular_momentum", (3,)),
+        positions=cat("positions", (sim.n, 3)) if record_positions else None,
+        velocities=cat("velocities", (sim.n, 3)) if record_positions else None,
+        final_positions=final_pos,
+        final_velocities=final_vel,
+        steps_done=sim.steps_done,
+        status="diverged" if sim.diverged else "complete",
+        message=_divergence_message(sim, parts) if sim.diverged else "",
+        wall_time_s=wall,
+    )
+
+
+def _divergence_message(sim: Simulation, parts: list[SampleChunk]) -> str:
+    bodies = sim.non_finite_bodies()
+    t_last = float(parts[-1].time[-1]) if parts else sim.t0
+    message = (
+        f"state became non-finite after t = {t_last:.6g} (by step {sim.steps_done}); "
+        f"bodies {bodies[:10]}{' ...' if len(bodies) > 10 else ''}"
+    )
+    # A scheme may know why (e.g. wisdom_holman: which body's Kepler solve failed, in which step).
+    detail = sim.failure_detail()
+    return f"{detail}; {message}" if detail else message

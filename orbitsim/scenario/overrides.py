@@ -1,0 +1,80 @@
+"""What :meth:`Scenario.with_overrides <orbitsim.scenario.Scenario.with_overrides>` changes.
+
+Some fields hang together, so replacing one resolves the others: ``steps`` and ``t_end`` (with
+``dt``), ``every`` and ``interval``, and an integrator with its settings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.fields import check_number, unknown_key_error
+from orbitsim.scenario.timing import resolve_steps
+
+if TYPE_CHECKING:
+    from orbitsim.scenario.model import Scenario
+
+__all__ = ["OVERRIDABLE", "resolve_overrides"]
+
+OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "steps", "t_end", "every",
+               "interval", "record_positions", "softening", "G", "names", "masses", "positions",
+               "velocities", "source", "checkpoint_every", "checkpoint_seconds")
+
+
+def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, Any]:
+    """The fields to replace in ``scenario`` for ``changes`` (``None`` values ignored).
+
+    Raises
+    ------
+    ScenarioError
+        For an unknown field or an invalid value (naming the field), located in the scenario's file.
+    """
+    changes = {k: v for k, v in changes.items() if v is not None}
+    for key in changes:
+        if key not in OVERRIDABLE:
+            raise unknown_key_error(key, "", OVERRIDABLE).located(scenario.source)
+    try:
+        _resolve_integrator_change(scenario, changes)
+        _resolve_time_change(scenario, changes)
+    except ScenarioError as err:
+        raise err.located(scenario.source) from None
+    if "every" in changes:
+        changes["interval"] = None
+    elif "interval" in changes:
+        changes["every"] = None
+    return changes
+
+
+def _resolve_integrator_change(scenario: Scenario, changes: dict[str, Any]) -> None:
+    integrator = changes.get("integrator")
+    if isinstance(integrator, Mapping):
+        settings = {k: v for k, v in integrator.items() if k != "name"}
+        if "name" not in integrator:
+            raise ScenarioError("an integrator mapping needs a name", key="integrator.name")
+        changes["integrator"] = integrator["name"]
+        changes.setdefault("integrator_settings", settings)
+    if "integrator" in changes and "integrator_settings" not in changes:
+        from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name
+
+        try:
+            new = canonical_name(changes["integrator"])
+        except UnknownIntegratorError as err:
+            raise ScenarioError(str(err), key="integrator") from None
+        if new != scenario.integrator:
+            changes["integrator_settings"] = {}
+
+
+def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
+    if "steps" in changes and "t_end" in changes:
+        raise ScenarioError("give only one of steps or t_end, not both", key="t_end")
+    dt = check_number(changes.get("dt", scenario.dt), "dt", positive=True)
+    if "steps" in changes:
+        changes["t_end"] = None
+        return
+    t_end = changes.get("t_end", scenario.t_end)
+    if t_end is not None:
+        t_end = check_number(t_end, "t_end", positive=True)
+        changes["t_end"] = t_end
+        changes["steps"] = resolve_steps(t_end, dt)[0]
