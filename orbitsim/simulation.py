@@ -121,6 +121,7 @@ class Simulation:
         self.acc = np.zeros((3, self.n))
         self.rows = potential_rows_scratch(self.n)
         self.steps_done = 0
+        self.diverged = False
         update_accelerations(self.pos, self.m, self.force, self.acc)
 
     @property
@@ -277,7 +278,8 @@ def simulate(
     every : int
         Sample every K steps (the first sample is step 0, the last is the final step).
     sample_steps : array, optional
-        Explicit increasing step indices to sample instead of ``every``.
+        Explicit increasing step indices to sample instead of ``every``; the last must be ``steps``
+        (an empty list only with ``steps=0``).
     G, softening : float
         Gravitational constant and Plummer softening length.
     record_positions : bool
@@ -293,6 +295,12 @@ def simulate(
     """
     if int(steps) != steps or steps < 0:
         raise SimulationError(f"steps must be a whole number >= 0, got {steps}")
+    if sample_steps is not None:
+        sample_steps = np.asarray(sample_steps, dtype=np.int64)
+        last = int(sample_steps[-1]) if sample_steps.size else 0
+        if last != steps:
+            # The loop stops at its last sample: a plan that ends early would silently shorten the run.
+            raise SimulationError(f"sample_steps must end at the last step ({steps}), got {last}")
     sim = Simulation(masses, positions, velocities, integrator, dt, G, softening, 0.0, threads, settings or {})
     plan = EveryPlan(int(steps), int(every)) if sample_steps is None else ExplicitPlan(sample_steps)
     start = time.perf_counter()

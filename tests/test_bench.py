@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
@@ -193,3 +194,16 @@ def test_cached_function_names_and_foreign_schemes(tmp_path: Path) -> None:
     names = cached_functions(tmp_path)
     assert names == ["base.drift", "rk4.step", "verlet.run"]
     assert _foreign_integrators(names, "verlet") == ["rk4.step"]
+
+
+def test_rss_growth_sees_a_trend_not_the_allocator_swing() -> None:
+    from orbitsim.bench.probes import rss_growth
+
+    samples = np.linspace(0, 1e7, 41)
+    ramp_then_flat = [[w, 0.0, min(300.0, 180.0 + w * 1.2e-4) + (11.0 if k % 2 else -11.0)]
+                      for k, w in enumerate(samples)]
+    settled, growth = rss_growth(ramp_then_flat)
+    assert 280.0 < settled < 320.0 and abs(growth) < 0.05 * settled
+    growing = [[w, 0.0, 200.0 + w * 2e-5] for w in samples]  # +200 MB over the run
+    settled, growth = rss_growth(growing)
+    assert growth > 100.0

@@ -174,6 +174,25 @@ def _probe(args: list[str], timeout: float | None = None) -> dict[str, Any]:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def rss_growth(series: list[list[float]]) -> tuple[float, float]:
+    """(settled RSS, growth) in MiB of a trace run's ``[samples written, seconds, RSS]`` readings.
+
+    Flat means the RSS does not grow with the samples written. The buffers of one call (up to
+    32 MiB, and the chunk copied out of them) come and go, so single readings swing by tens of MB
+    either way: the settled level is the median of the readings taken while the 10-30% of the
+    samples were written (imports and buffers are allocated by then), the final level the median
+    over the last 20%, and the growth their difference. Readings are by samples written, not by
+    their index, so a slow start does not move the window.
+    """
+    if not series:
+        return 0.0, 0.0
+    total = series[-1][0]
+    early = [row[2] for row in series if 0.1 * total <= row[0] <= 0.3 * total] or [series[0][2]]
+    late = [row[2] for row in series if row[0] >= 0.8 * total] or [series[-1][2]]
+    settled = statistics.median(early)
+    return settled, statistics.median(late) - settled
+
+
 def run_memory(group: Group) -> dict[str, Any]:
     """Peak RSS of a large-N run; RSS of a long trace-writing run over time (when asked for)."""
     p = group.params
@@ -186,10 +205,7 @@ def run_memory(group: Group) -> dict[str, Any]:
         finally:
             shutil.rmtree(folder, ignore_errors=True)
         rss = [row[2] for row in trace["series"]]
-        # Flat means: after the first tenth of the run (imports, buffers, the sample plan are
-        # all allocated by then) the RSS no longer grows with the number of samples written.
-        settled = rss[max(0, len(rss) // 10)] if rss else 0.0
-        trace["growth_after_first_tenth_mb"] = (max(rss) - settled) if rss else 0.0
+        trace["settled_rss_mb"], trace["growth_mb"] = rss_growth(trace["series"])
         trace["median_rss_mb"] = statistics.median(rss) if rss else 0.0
         out["trace"] = trace
     return out

@@ -109,7 +109,8 @@ def _probes(doc: dict[str, Any]) -> list[str]:
                 rss = [row[2] for row in t["series"]]
                 out.append(f"- trace of {t['samples']:,} samples (N = {t['n']}, via {t['path']}, "
                            f"{t['wall_s']:.0f} s, file {t['file_mb']:.0f} MB): RSS {min(rss):.0f} - {max(rss):.0f} MB, "
-                           f"growth after the first tenth {t['growth_after_first_tenth_mb']:+.1f} MB.")
+                           f"median RSS {t['settled_rss_mb']:.0f} MB at 10-30% of the samples, "
+                           f"{t['growth_mb']:+.1f} MB by the end.")
             out.append("")
     return out
 
