@@ -18,7 +18,7 @@ a buffer, where the square roots and divisions run as vector instructions (each 
 rounded, so a lane gives the bits of the scalar operation); the four chains of additions then run
 at the adders' throughput instead of one addition per 3-cycle latency. One evaluation at
 N = 16384 on one core: 0.53 s with one chain and a signed term index (LLVM emitted gathers),
-0.23 s with an unsigned index, 0.12 s with four chains. The parallel version deals the rows out
+0.23 s with an unsigned index, 0.14 s with four chains. The parallel version deals the rows out
 in strides, so every thread gets a fair share of the triangle: split into halves, the first
 thread had three quarters of it.
 """
@@ -36,9 +36,8 @@ PARALLEL_POTENTIAL_MIN_N = 384
 #: Terms per buffered block: 2 KiB, which stays in L1 next to the four position/mass streams.
 TERM_BLOCK = 256
 
-#: From this N on the serial potential buffers its terms; below it a sample costs more in
-#: allocation and per-row calls than in terms (a sample at N = 9 every 100 steps cost +9% of the
-#: run through the buffered path, +2% without it).
+#: From this N on the serial potential buffers its terms; below it a row is too short for the
+#: vector loop to pay for its buffer allocation and per-row calls, and small runs sample often.
 BUFFERED_POTENTIAL_MIN_N = 64
 
 #: Row strides of the parallel potential: chunk c takes rows c, c + S, c + 2S, ... so the chunks
