@@ -101,6 +101,9 @@ def test_probes_report_sampling_and_memory(results: tuple[dict, Path, list[Path]
     probes = {p["kind"]: p for p in doc["probes"]}
     assert probes["sampling"]["samples"] == 11
     assert probes["sampling"]["with_samples"]["median"] > 0
+    sampling = probes["sampling"]  # the overhead pairs the two runs of each round
+    rounds = zip(sampling["with_samples"]["values"], sampling["without_samples"]["values"], strict=True)
+    assert sampling["overhead"] == pytest.approx(float(np.median([a / b for a, b in rounds])) - 1.0)
     memory = probes["memory"]
     assert memory["large"]["peak_rss_mb"] > memory["large"]["baseline_rss_mb"] * 0.5
     assert memory["trace"]["samples"] == 300 and memory["trace"]["series"]
@@ -207,3 +210,29 @@ def test_rss_growth_sees_a_trend_not_the_allocator_swing() -> None:
     growing = [[w, 0.0, 200.0 + w * 2e-5] for w in samples]  # +200 MB over the run
     settled, growth = rss_growth(growing)
     assert growth > 100.0
+
+
+def _timed_case(group: str, engine: str, integrator: str, values: list[float], steps: int = 10) -> dict:
+    summary = {"median": float(np.median(values)), "min": min(values), "max": max(values), "values": values}
+    per_step = {k: summary[k] / steps for k in ("median", "min", "max")}
+    return {"id": f"{group}/{engine}/{integrator}", "group": group, "engine": engine, "integrator": integrator,
+            "n": 5, "steps": steps, "threads": 1, "repeats": len(values), "time_s": summary, "cpu_s": summary,
+            "per_step_s": per_step, "cpu_per_step_s": per_step}
+
+
+def test_ratios_pair_the_repeats_of_one_round() -> None:
+    from orbitsim.bench.targets import evaluate_targets, paired_ratio
+
+    # orbitsim costs 1, REBOUND 2 per repeat; a burst of load slows orbitsim in rounds 3-5 and
+    # REBOUND in rounds 4-5 (9x). Round by round the ratio is 0.5 in four rounds of five.
+    orbitsim = _timed_case("pair", "orbitsim", "verlet", [1.0, 1.0, 9.0, 9.0, 9.0])
+    rebound = _timed_case("pair", "rebound", "leapfrog", [2.0, 2.0, 2.0, 18.0, 18.0], steps=20)
+    assert paired_ratio(orbitsim, rebound) == pytest.approx(1.0)  # per step: REBOUND ran twice the steps
+    assert orbitsim["per_step_s"]["median"] / rebound["per_step_s"]["median"] == pytest.approx(9.0)
+    # The targets take the group with the most rounds: here the 5-round pair group, not the
+    # 2-round one whose ratio of medians (0.25) would say the target is met.
+    few = [_timed_case("wide", "orbitsim", "verlet", [1.0, 1.0]),
+           _timed_case("wide", "rebound", "leapfrog", [4.0, 4.0])]
+    rows = {r["key"]: r for r in evaluate_targets({"cases": [*few, orbitsim, rebound]})}
+    assert rows["small_n_verlet"]["measured"] == pytest.approx(1.0)
+    assert rows["small_n_verlet"]["met"] is False and "pair" in rows["small_n_verlet"]["source"]

@@ -78,7 +78,10 @@ def _small_n(doc: dict[str, Any], path: Path) -> Path | None:
     width = 0.8 / len(sizes)
     fig, ax = plt.subplots(figsize=(max(7.5, 0.9 * len(labels)), 5))
     for k, n in enumerate(sizes):
-        at = {_label(c).replace(f" ({c['threads']} thr)", ""): c["per_step_s"] for c in cases if c["n"] == n}
+        at: dict[str, Any] = {}
+        for c in cases:  # the first group that measured a scheme at N (the matrix's all-scheme group)
+            if c["n"] == n:
+                at.setdefault(_label(c).replace(f" ({c['threads']} thr)", ""), c["per_step_s"])
         xs = [i + (k - (len(sizes) - 1) / 2) * width for i, lab in enumerate(labels) if lab in at]
         vals = [at[lab] for lab in labels if lab in at]
         med = np.array([v["median"] for v in vals]) * 1e9

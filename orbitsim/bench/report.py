@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
+from orbitsim.bench.targets import paired_ratio
+
 __all__ = ["markdown", "side_by_side", "targets_table"]
 
 #: REBOUND scheme an orbitsim integrator is compared with in the side-by-side table.
@@ -36,8 +38,10 @@ def targets_table(doc: dict[str, Any]) -> str:
 def side_by_side(doc: dict[str, Any]) -> str:
     """orbitsim's time per step against its REBOUND partner at the same N, measured interleaved.
 
-    The last column divides CPU times instead (all threads of the process): for one-thread cases it
-    is the cost without the waiting a busy machine adds; for several threads it is not a speed.
+    The ratios are medians over rounds of each round's ratio
+    (:func:`~orbitsim.bench.targets.paired_ratio`), the times per step medians over repeats. The
+    last column divides CPU times instead (all threads of the process): for one-thread cases it is
+    the cost without the waiting a busy machine adds; for several threads it is not a speed.
     """
     rebound = {(c["group"], c["n"], c["integrator"]): c for c in doc.get("cases", []) if c["engine"] == "rebound"}
     lines = ["| group | N | orbitsim | threads | time/step | REBOUND | time/step | orbitsim / REBOUND | "
@@ -49,8 +53,8 @@ def side_by_side(doc: dict[str, Any]) -> str:
         twin = rebound.get((c["group"], c["n"], scheme))
         if twin is None:
             continue
-        ratio = c["per_step_s"]["median"] / twin["per_step_s"]["median"]
-        cpu = c["cpu_per_step_s"]["median"] / twin["cpu_per_step_s"]["median"]
+        ratio = paired_ratio(c, twin)
+        cpu = paired_ratio(c, twin, "cpu_s")
         lines.append(f"| {c['group']} | {c['n']} | {c['integrator']} | {c['threads']} | "
                      f"{_time(c['per_step_s']['median'])} | {scheme} | {_time(twin['per_step_s']['median'])} | "
                      f"{ratio:.3g} ({1 / ratio:.3g}x faster) | {cpu:.3g} |")
@@ -98,7 +102,9 @@ def _probes(doc: dict[str, Any]) -> list[str]:
             out.append(f"{p['integrator']}, N = {p['n']}, {p['steps']} steps: every {p['every']} steps "
                        f"({p['samples']} samples) {_spread(p['with_samples'])}; first and last only "
                        f"{_spread(p['without_samples'])}; overhead {p['overhead']:+.1%} "
-                       f"(from the minima {p['overhead_min']:+.1%}, "
+                       f"(median of the {len(p['with_samples']['values'])} rounds' ratios; "
+                       f"from the medians {p.get('overhead_of_medians', float('nan')):+.1%}, "
+                       f"from the minima {p['overhead_min']:+.1%}, "
                        f"from CPU time {p.get('overhead_cpu', float('nan')):+.1%}).\n")
         elif p["kind"] == "memory":
             big = p["large"]
