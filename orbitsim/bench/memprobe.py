@@ -20,6 +20,7 @@ import importlib.util
 import json
 import resource
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -78,31 +79,44 @@ def _trace_scenario(n: int, samples: int, every: int) -> Any:
     })
 
 
+#: Seconds between two RSS readings of the trace run. A thread reads them while the jitted calls
+#: run (they release the GIL), so the series sees the sample buffers come and go inside a call;
+#: reading once per call gave about 24 readings for 10^7 samples, and a window of five.
+READ_PERIOD_S = 0.05
+
+
 def probe_trace(n: int, samples: int, every: int, outdir: Path) -> dict[str, Any]:
     """Run into a trace of ``samples`` samples, recording RSS against samples written."""
     series: list[tuple[int, float, float]] = []
     start = time.perf_counter()
-    state = {"samples": 0, "next": 0.0}
+    state = {"samples": 0}
+    stop = threading.Event()
+
+    def read_rss() -> None:
+        while not stop.wait(READ_PERIOD_S):
+            series.append((state["samples"], time.perf_counter() - start, rss_mb()[0]))
 
     def watch(written: int) -> None:
-        now = time.perf_counter() - start
-        if now >= state["next"]:
-            series.append((written, now, rss_mb()[0]))
-            state["next"] = now + 0.5  # two readings a second are plenty for a flat line
+        state["samples"] = written
 
+    reader = threading.Thread(target=read_rss, name="rss-reader", daemon=True)
+    reader.start()
     output = outdir / "memprobe_trace.h5"
-    if importlib.util.find_spec("orbitsim.runner") and importlib.util.find_spec("orbitsim.scenario"):
-        from orbitsim.runner import run_scenario
+    try:
+        if importlib.util.find_spec("orbitsim.runner") and importlib.util.find_spec("orbitsim.scenario"):
+            from orbitsim.runner import run_scenario
 
-        def on_chunk(_sim: Any, chunk: Any) -> None:
-            state["samples"] += len(chunk)
-            watch(int(state["samples"]))
+            def on_chunk(_sim: Any, chunk: Any) -> None:
+                watch(state["samples"] + len(chunk))
 
-        summary = run_scenario(_trace_scenario(n, samples, every), output, force=True, on_chunk=on_chunk,
-                               handle_signals=False)
-        written, path = int(summary.samples), "orbitsim.runner.run_scenario"
-    else:
-        written, path = _trace_fallback(n, samples, every, output, watch), "Simulation + TraceWriter"
+            summary = run_scenario(_trace_scenario(n, samples, every), output, force=True, on_chunk=on_chunk,
+                                   handle_signals=False)
+            written, path = int(summary.samples), "orbitsim.runner.run_scenario"
+        else:
+            written, path = _trace_fallback(n, samples, every, output, watch), "Simulation + TraceWriter"
+    finally:
+        stop.set()
+        reader.join()
     series.append((written, time.perf_counter() - start, rss_mb()[0]))
     size = output.stat().st_size if output.exists() else 0
     output.unlink(missing_ok=True)
