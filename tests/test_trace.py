@@ -187,8 +187,11 @@ def test_many_single_appends_and_chunk_shapes(tmp_path: Path) -> None:
         for i in range(samples):
             one.step, one.time = np.array([i]), np.array([0.01 * i])
             w.append(one)
-        # memory stays flat: only a bounded number of samples are buffered
+        # memory stays flat: only a bounded number of samples are buffered, and HDF5's metadata
+        # cache (the chunk indexes) is held to 4 MiB instead of its adaptive 32 MiB ceiling
         assert w._buffer_rows < 1024
+        cache = w._require_open().id.get_mdc_config()
+        assert cache.max_size == 4 * 2**20 and cache.initial_size <= cache.max_size
     with h5py.File(path, "r") as f:
         chunks = f["positions"].chunks
         assert chunks[1:] == (n, 3) and 1 < chunks[0] <= 1024
