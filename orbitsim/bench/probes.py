@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.bench.matrix import Group
-from orbitsim.bench.stats import summarise
+from orbitsim.bench.stats import paired_median, summarise
 
 __all__ = ["cached_functions", "run_memory", "run_sampling", "run_startup"]
 
@@ -162,15 +162,11 @@ def run_sampling(group: Group) -> dict[str, Any]:
             "every": p["every"], "samples": p["steps"] // p["every"] + 1, "with_samples": every,
             "without_samples": none,
             # As every ratio of the suite: the median over rounds of the ratio within a round.
-            "overhead": _paired_overhead(times), "overhead_of_medians": every["median"] / none["median"] - 1.0,
+            "overhead": paired_median(times["every"], times["none"]) - 1.0,
+            "overhead_of_medians": every["median"] / none["median"] - 1.0,
             "overhead_min": every["min"] / none["min"] - 1.0,
             # One thread: the CPU time is the cost without the waits a busy machine adds.
-            "overhead_cpu": _paired_overhead(cpu)}
-
-
-def _paired_overhead(times: dict[str, list[float]]) -> float:
-    """Median over the interleaved rounds of ``every / none``, minus 1."""
-    return statistics.median(a / b for a, b in zip(times["every"], times["none"], strict=True)) - 1.0
+            "overhead_cpu": paired_median(cpu["every"], cpu["none"]) - 1.0}
 
 
 def _probe(args: list[str], timeout: float | None = None) -> dict[str, Any]:

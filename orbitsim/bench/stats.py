@@ -9,7 +9,7 @@ from __future__ import annotations
 import statistics
 from collections.abc import Sequence
 
-__all__ = ["scaled", "summarise"]
+__all__ = ["paired_median", "scaled", "summarise"]
 
 
 def summarise(values: Sequence[float]) -> dict[str, float | list[float]]:
@@ -29,3 +29,12 @@ def scaled(summary: dict[str, float | list[float]], factor: float, *, invert: bo
     if invert:
         return {"median": factor / mid, "min": factor / hi, "max": factor / lo}
     return {"median": factor * mid, "min": factor * lo, "max": factor * hi}
+
+
+def paired_median(numerators: Sequence[float], denominators: Sequence[float]) -> float:
+    """Median over rounds of ``numerators[r] / denominators[r]``, for timings taken interleaved
+    (round r timed both), over the rounds both have."""
+    rounds = min(len(numerators), len(denominators))
+    if rounds == 0:
+        raise ValueError("no round has both timings")
+    return statistics.median(numerators[r] / denominators[r] for r in range(rounds))

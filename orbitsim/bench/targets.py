@@ -10,9 +10,10 @@ closest in time. ``margin`` is always oriented so that >= 1 means the target is 
 
 from __future__ import annotations
 
-import statistics
 from collections.abc import Callable
 from typing import Any
+
+from orbitsim.bench.stats import paired_median
 
 __all__ = ["TARGETS", "evaluate_targets", "paired_ratio"]
 
@@ -74,12 +75,8 @@ def paired_ratio(case: dict[str, Any], twin: dict[str, Any], block: str = "time_
     order. A burst of load that slows some repeats of one engine and not the other shifts the ratio
     of the two medians, but only the rounds it hit of the paired ratios.
     """
-    a = [v / case["steps"] for v in case[block]["values"]]
-    b = [v / twin["steps"] for v in twin[block]["values"]]
-    rounds = min(len(a), len(b))
-    if rounds == 0:
-        raise ValueError(f"{case['id']} and {twin['id']} share no timed round")
-    return statistics.median(a[r] / b[r] for r in range(rounds))
+    return paired_median([v / case["steps"] for v in case[block]["values"]],
+                         [v / twin["steps"] for v in twin[block]["values"]])
 
 
 def _probe(doc: Doc, kind: str) -> dict[str, Any] | None:
