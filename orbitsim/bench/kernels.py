@@ -46,7 +46,7 @@ def _repeat_serial(kernel, reps, pos, m, eps2, acc):
     n = pos.shape[1]
     for _ in range(reps):
         if kernel == 0:
-            gravity._all_pairs(pos, m, 1.0, eps2, acc)
+            gravity.all_pairs_accelerations(pos, m, 1.0, eps2, acc)
         else:
             acc[:, :] = 0.0
             gravity._accumulate_rows(pos[0], pos[1], pos[2], m, eps2, 0, n, acc[0], acc[1], acc[2])

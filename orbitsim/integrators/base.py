@@ -20,6 +20,12 @@ An integrator module provides, beside the math:
 ``run`` lives in each scheme's module (it is a few lines) rather than in one dispatcher because a
 jitted function that receives another as an argument never hits the on-disk cache, and a single
 switch over every scheme would compile all of them on a user's first run.
+
+The steps between two samples are written once per scheme, as an inlined
+``advance(..., steps)`` that both ``step`` (one step) and ``run`` (the steps up to the next
+sample) use. It unpacks the force context once and calls the force kernels from its own loop.
+An inlined helper that made the call would take and release a reference to each array it is
+given on every step (:func:`orbitsim.physics.gravity.update_accelerations` says why).
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.base import drift, kick_drift, record_sample
-from orbitsim.physics.gravity import update_accelerations
+from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
 
 #: Order 2: the plain drift-kick-drift leapfrog, one substep.
 LEAPFROG2_WEIGHTS = np.array([1.0])
@@ -67,21 +67,35 @@ def drift_coefficients(weights: np.ndarray) -> np.ndarray:
 
 
 @jit_inline
-def compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks):
-    """One composed step: drift(d_0 dt), then for each substep an evaluation, kick and drift.
+def advance_dkd(pos, vel, acc, m, force, dt, steps, drifts, kicks):
+    """``steps`` composed steps, each a drift(d_0 dt), then for each substep an evaluation, kick and
+    drift.
 
     ``acc`` is not read on entry; on exit it holds the accelerations of the last kick, which were
-    evaluated half a substep before the final positions.
+    evaluated half a substep before the final positions. The force kernels are called from this
+    loop, not through an inlined helper: see :func:`orbitsim.physics.gravity.update_accelerations`.
     """
-    drift(pos, vel, dt * drifts[0])
-    for s in range(kicks.shape[0]):
-        update_accelerations(pos, m, force, acc)
-        kick_drift(pos, vel, acc, dt * kicks[s], dt * drifts[s + 1])
+    G, eps2, slabs, bounds = force
+    small = pos.shape[1] <= SMALL_N_MAX
+    for _ in range(steps):
+        drift(pos, vel, dt * drifts[0])
+        for s in range(kicks.shape[0]):
+            if small:
+                all_pairs_accelerations(pos, m, G, eps2, acc)
+            else:
+                accelerations(pos, m, G, eps2, acc, slabs, bounds)
+            kick_drift(pos, vel, acc, dt * kicks[s], dt * drifts[s + 1])
+
+
+@jit_inline
+def compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks):
+    """One composed step (:func:`advance_dkd`)."""
+    advance_dkd(pos, vel, acc, m, force, dt, 1, drifts, kicks)
 
 
 @jit
 def run_dkd(state, force, dt, work, t0, n_done, targets, record, out, drifts, kicks):
-    """Fixed-dt loop of :func:`compose_dkd` for one coefficient table.
+    """Fixed-dt loop of :func:`advance_dkd` for one coefficient table.
 
     The leapfrog, leapfrog4/6/8 modules share this loop (tables are data, so it caches once for
     all of them); the contract is :mod:`orbitsim.integrators.base`'s ``run``.
@@ -89,9 +103,9 @@ def run_dkd(state, force, dt, work, t0, n_done, targets, record, out, drifts, ki
     pos, vel, acc, m = state
     written = 0
     for k in range(targets.shape[0]):
-        while n_done < targets[k]:
-            compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks)
-            n_done += 1
+        if n_done < targets[k]:
+            advance_dkd(pos, vel, acc, m, force, dt, targets[k] - n_done, drifts, kicks)
+            n_done = targets[k]
         if record[k]:
             if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
                 return written, n_done, False

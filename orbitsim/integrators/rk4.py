@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.base import IntegratorSpec, record_sample
-from orbitsim.physics.gravity import update_accelerations
+from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
 
 SPEC = IntegratorSpec(
     name="rk4",
@@ -55,41 +55,56 @@ def _stage(pos, x0, v0, k_x, acc, h, weight, sum_x, sum_v):
 
 
 @jit_inline
-def step(pos, vel, acc, m, force, dt, work):
-    """One RK4 step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit.
+def advance(pos, vel, acc, m, force, dt, work, steps):
+    """``steps`` RK4 steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
 
-    ``work`` slots: x0, v0, sum of weighted k_x, sum of weighted k_v, current k_x.
+    ``work`` slots: x0, v0, sum of weighted k_x, sum of weighted k_v, current k_x. The force
+    kernels are called from this loop, not through an inlined helper: see
+    :func:`orbitsim.physics.gravity.update_accelerations`.
     """
+    G, eps2, slabs, bounds = force
+    small = pos.shape[1] <= SMALL_N_MAX
     x0 = work[0]
     v0 = work[1]
     sum_x = work[2]
     sum_v = work[3]
     k_x = work[4]
-    x0[:, :] = pos
-    v0[:, :] = vel
-    k_x[:, :] = vel
-    sum_x[:, :] = 0.0
-    sum_v[:, :] = 0.0
-    for s in range(3):
-        _stage(pos, x0, v0, k_x, acc, C_NODES[s] * dt, B_WEIGHTS[s], sum_x, sum_v)
-        update_accelerations(pos, m, force, acc)
     last = B_WEIGHTS[3]
-    for c in range(3):
-        for i in range(pos.shape[1]):
-            pos[c, i] = x0[c, i] + dt * (sum_x[c, i] + last * k_x[c, i])
-            vel[c, i] = v0[c, i] + dt * (sum_v[c, i] + last * acc[c, i])
-    update_accelerations(pos, m, force, acc)
+    for _ in range(steps):
+        x0[:, :] = pos
+        v0[:, :] = vel
+        k_x[:, :] = vel
+        sum_x[:, :] = 0.0
+        sum_v[:, :] = 0.0
+        for s in range(4):
+            if s < 3:
+                _stage(pos, x0, v0, k_x, acc, C_NODES[s] * dt, B_WEIGHTS[s], sum_x, sum_v)
+            else:
+                for c in range(3):
+                    for i in range(pos.shape[1]):
+                        pos[c, i] = x0[c, i] + dt * (sum_x[c, i] + last * k_x[c, i])
+                        vel[c, i] = v0[c, i] + dt * (sum_v[c, i] + last * acc[c, i])
+            if small:
+                all_pairs_accelerations(pos, m, G, eps2, acc)
+            else:
+                accelerations(pos, m, G, eps2, acc, slabs, bounds)
+
+
+@jit_inline
+def step(pos, vel, acc, m, force, dt, work):
+    """One RK4 step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
+    advance(pos, vel, acc, m, force, dt, work, 1)
 
 
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`step` (contract in :mod:`orbitsim.integrators.base`)."""
+    """Fixed-dt loop of :func:`advance` (contract in :mod:`orbitsim.integrators.base`)."""
     pos, vel, acc, m = state
     written = 0
     for k in range(targets.shape[0]):
-        while n_done < targets[k]:
-            step(pos, vel, acc, m, force, dt, work)
-            n_done += 1
+        if n_done < targets[k]:
+            advance(pos, vel, acc, m, force, dt, work, targets[k] - n_done)
+            n_done = targets[k]
         if record[k]:
             if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
                 return written, n_done, False

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.base import IntegratorSpec, kick_drift, record_sample
-from orbitsim.physics.gravity import update_accelerations
+from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
 
 SPEC = IntegratorSpec(
     name="semi_implicit_euler",
@@ -30,21 +30,37 @@ SPEC = IntegratorSpec(
 
 
 @jit_inline
+def advance(pos, vel, acc, m, force, dt, work, steps):
+    """``steps`` kick-then-drift steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
+
+    The force kernels are called from this loop, not through an inlined helper: see
+    :func:`orbitsim.physics.gravity.update_accelerations`.
+    """
+    G, eps2, slabs, bounds = force
+    small = pos.shape[1] <= SMALL_N_MAX
+    for _ in range(steps):
+        kick_drift(pos, vel, acc, dt, dt)
+        if small:
+            all_pairs_accelerations(pos, m, G, eps2, acc)
+        else:
+            accelerations(pos, m, G, eps2, acc, slabs, bounds)
+
+
+@jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One kick-then-drift step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
-    kick_drift(pos, vel, acc, dt, dt)
-    update_accelerations(pos, m, force, acc)
+    advance(pos, vel, acc, m, force, dt, work, 1)
 
 
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`step` (contract in :mod:`orbitsim.integrators.base`)."""
+    """Fixed-dt loop of :func:`advance` (contract in :mod:`orbitsim.integrators.base`)."""
     pos, vel, acc, m = state
     written = 0
     for k in range(targets.shape[0]):
-        while n_done < targets[k]:
-            step(pos, vel, acc, m, force, dt, work)
-            n_done += 1
+        if n_done < targets[k]:
+            advance(pos, vel, acc, m, force, dt, work, targets[k] - n_done)
+            n_done = targets[k]
         if record[k]:
             if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
                 return written, n_done, False

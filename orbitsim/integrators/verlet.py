@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.base import IntegratorSpec, drift, kick, record_sample
-from orbitsim.physics.gravity import update_accelerations
+from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
 
 SPEC = IntegratorSpec(
     name="verlet",
@@ -31,22 +31,12 @@ SPEC = IntegratorSpec(
 
 
 @jit_inline
-def step(pos, vel, acc, m, force, dt, work):
-    """One KDK step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
-    half_dt = 0.5 * dt
-    kick(vel, acc, half_dt)
-    drift(pos, vel, dt)
-    update_accelerations(pos, m, force, acc)
-    kick(vel, acc, half_dt)
-
-
-@jit_inline
 def _kick_kick_drift(pos, vel, acc, half_dt, dt):
     """The closing kick of one step, the opening kick of the next, and its drift, in one pass.
 
     The same operations in the same order as kick, kick, drift (each element's update is
-    independent), so the same bits as two calls of :func:`step`, with one pass over the state
-    instead of three.
+    independent), so the same bits as two single steps, with one pass over the state instead of
+    three.
     """
     for c in range(3):
         for i in range(pos.shape[1]):
@@ -55,28 +45,47 @@ def _kick_kick_drift(pos, vel, acc, half_dt, dt):
             pos[c, i] += dt * v_half
 
 
+@jit_inline
+def advance(pos, vel, acc, m, force, dt, work, steps):
+    """``steps`` KDK steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
+
+    The steps run back to back, so each closing kick is fused with the next step's opening kick
+    and drift (:func:`_kick_kick_drift`); the state at the end is bit-identical to ``steps``
+    separate steps. The force kernels are called from this loop, not through an inlined helper:
+    see :func:`orbitsim.physics.gravity.update_accelerations`.
+    """
+    if steps < 1:
+        return
+    G, eps2, slabs, bounds = force
+    small = pos.shape[1] <= SMALL_N_MAX
+    half_dt = 0.5 * dt
+    kick(vel, acc, half_dt)
+    drift(pos, vel, dt)
+    for s in range(steps):
+        if s > 0:
+            _kick_kick_drift(pos, vel, acc, half_dt, dt)
+        if small:
+            all_pairs_accelerations(pos, m, G, eps2, acc)
+        else:
+            accelerations(pos, m, G, eps2, acc, slabs, bounds)
+    kick(vel, acc, half_dt)
+
+
+@jit_inline
+def step(pos, vel, acc, m, force, dt, work):
+    """One KDK step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
+    advance(pos, vel, acc, m, force, dt, work, 1)
+
+
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`step` (contract in :mod:`orbitsim.integrators.base`).
-
-    Between two samples the steps run back to back, so each closing kick is fused with the next
-    step's opening kick and drift; the state at every sample is bit-identical to stepping with
-    :func:`step`.
-    """
+    """Fixed-dt loop of :func:`advance` (contract in :mod:`orbitsim.integrators.base`)."""
     pos, vel, acc, m = state
-    half_dt = 0.5 * dt
     written = 0
     for k in range(targets.shape[0]):
         if n_done < targets[k]:
-            kick(vel, acc, half_dt)
-            drift(pos, vel, dt)
-            update_accelerations(pos, m, force, acc)
-            n_done += 1
-            while n_done < targets[k]:
-                _kick_kick_drift(pos, vel, acc, half_dt, dt)
-                update_accelerations(pos, m, force, acc)
-                n_done += 1
-            kick(vel, acc, half_dt)
+            advance(pos, vel, acc, m, force, dt, work, targets[k] - n_done)
+            n_done = targets[k]
         if record[k]:
             if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
                 return written, n_done, False

@@ -18,9 +18,10 @@ kernel produce identical bits, and so do 1 and 2 threads.
 Speed (2 cores, float64): the loop is bound by the square-root/division unit. Three regimes, each
 measured (benchmarks/README.md):
 
-* N <= :data:`SMALL_N_MAX`: a step is latency, not arithmetic. :func:`_all_pairs` sums over all
-  ordered pairs (each pair twice, the self term masked): no third-law scatter into a[j] that the
-  next row reloads, no per-row vector prologue; 2x faster than the third-law rows at N = 5.
+* N <= :data:`SMALL_N_MAX`: a step is latency, not arithmetic. :func:`all_pairs_accelerations`
+  sums over all ordered pairs (each pair twice, the self term masked): no third-law scatter into
+  a[j] that the next row reloads, no per-row vector prologue; 2x faster than the third-law rows
+  at N = 5.
 * N < :data:`PARALLEL_MIN_N`: the third-law rows in one block, on one thread.
 * from :data:`PARALLEL_MIN_N` up: the blocks spread over the threads.
 
@@ -42,9 +43,9 @@ from orbitsim._jit import jit, jit_force, jit_inline, jit_parallel
 #: parallel region can wait a scheduler timeslice for its second thread.
 PARALLEL_MIN_N = 384
 
-#: Largest N summed over all ordered pairs by :func:`_all_pairs` (one block only). Measured per
-#: evaluation on one core: 2x the rows' speed at N = 5 and 16, 1.1x at 48; the rows win from about
-#: 56 (exact crossover 40-64, it alternates with the vector width; benchmarks/README.md).
+#: Largest N summed over all ordered pairs by :func:`all_pairs_accelerations` (one block only).
+#: Measured per evaluation on one core: 2x the rows' speed at N = 5 and 16, 1.1x at 48; the rows
+#: win from about 56 (exact crossover 40-64, it alternates with the vector width; benchmarks/README.md).
 SMALL_N_MAX = 48
 
 #: Number of row blocks for large N: enough to balance 2-16 threads, few enough that adding the
@@ -174,7 +175,7 @@ def _accumulate_rows(x, y, z, m, eps2, i_start, i_stop, ax, ay, az):
 
 
 @jit_force
-def _all_pairs(pos, m, G, eps2, acc):
+def all_pairs_accelerations(pos, m, G, eps2, acc):
     """a_i = G sum_{j != i} m_j (x_j - x_i) / r_ij^3 over all ordered pairs, written (not added)
     into ``acc``. For a handful of bodies: see the module docstring.
 
@@ -252,7 +253,7 @@ def accelerations_serial(pos, m, G, eps2, acc, slabs, bounds):
     """
     blocks = bounds.shape[0] - 1
     if blocks == 1 and pos.shape[1] <= SMALL_N_MAX:
-        _all_pairs(pos, m, G, eps2, acc)
+        all_pairs_accelerations(pos, m, G, eps2, acc)
         return
     if blocks == 1:
         acc[:, :] = 0.0
@@ -308,15 +309,18 @@ def make_force(G: float, softening: float, n: int) -> tuple[float, float, np.nda
 def update_accelerations(pos, m, force, acc):
     """Accelerations at ``pos`` into ``acc`` from a force context made by :func:`make_force`.
 
-    This is the dispatch every integrator step calls (as a module global, so callers cache). It is
-    inlined into each step at Numba's IR level (:func:`orbitsim._jit.jit_inline`); the kernels
-    behind it stay calls, so their loops vectorise as compiled here. Small systems go straight to
-    :func:`_all_pairs`, the path :func:`accelerations_serial` takes for them (same bits): at N = 5
-    each call layer skipped, with its arguments and reference counts, was ~15% of a step
-    (measured, benchmarks/README.md). ``make_force`` gives every N <= SMALL_N_MAX one block, so
-    the block count need not be read.
+    For one evaluation outside a stepping loop (the initial accelerations of a run). Small systems
+    go straight to :func:`all_pairs_accelerations`, the path :func:`accelerations_serial` takes
+    for them (same bits); ``make_force`` gives every N <= SMALL_N_MAX one block.
+
+    The stepping loops do not call this per step. Each scheme's ``advance`` unpacks the context
+    once and calls :func:`all_pairs_accelerations` or :func:`accelerations` from its loop body.
+    Numba gives an inlined function its own copies of its array arguments. Each copy costs an
+    atomic increment and decrement of the array's reference count, and LLVM's pruning pass keeps
+    them when a call that may return an error lies between the two. Through this helper a 5-body
+    step paid ten such calls per evaluation, 4-13% of the step (benchmarks/README.md).
     """
     if pos.shape[1] <= SMALL_N_MAX:
-        _all_pairs(pos, m, force[0], force[1], acc)
+        all_pairs_accelerations(pos, m, force[0], force[1], acc)
     else:
         accelerations(pos, m, force[0], force[1], acc, force[2], force[3])
