@@ -100,7 +100,7 @@ class Simulation:
         from orbitsim._jit import set_num_threads
         from orbitsim.integrators.registry import get_module
         from orbitsim.physics.diagnostics import potential_rows_scratch
-        from orbitsim.physics.gravity import make_force, update_accelerations
+        from orbitsim.physics.gravity import accelerations, make_force
 
         if not (math.isfinite(self.dt) and self.dt != 0.0):
             raise SimulationError(f"dt must be a finite non-zero number, got {self.dt}")
@@ -122,7 +122,8 @@ class Simulation:
         self.rows = potential_rows_scratch(self.n)
         self.steps_done = 0
         self.diverged = False
-        update_accelerations(self.pos, self.m, self.force, self.acc)
+        G, eps2, slabs, bounds = self.force
+        accelerations(self.pos, self.m, G, eps2, self.acc, slabs, bounds)
 
     @property
     def time(self) -> float:

@@ -25,7 +25,7 @@ The steps between two samples are written once per scheme, as an inlined
 ``advance(..., steps)`` that both ``step`` (one step) and ``run`` (the steps up to the next
 sample) use. It unpacks the force context once and calls the force kernels from its own loop.
 An inlined helper that made the call would take and release a reference to each array it is
-given on every step (:func:`orbitsim.physics.gravity.update_accelerations` says why).
+given on every step (:mod:`orbitsim.physics.gravity` says why).
 """
 
 from __future__ import annotations

@@ -73,7 +73,7 @@ def advance_dkd(pos, vel, acc, m, force, dt, steps, drifts, kicks):
 
     ``acc`` is not read on entry; on exit it holds the accelerations of the last kick, which were
     evaluated half a substep before the final positions. The force kernels are called from this
-    loop, not through an inlined helper: see :func:`orbitsim.physics.gravity.update_accelerations`.
+    loop, not through an inlined helper: see :mod:`orbitsim.physics.gravity`.
     """
     G, eps2, slabs, bounds = force
     small = pos.shape[1] <= SMALL_N_MAX

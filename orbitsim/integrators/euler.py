@@ -34,7 +34,7 @@ def advance(pos, vel, acc, m, force, dt, work, steps):
     """``steps`` explicit Euler steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
 
     The force kernels are called from this loop, not through an inlined helper: see
-    :func:`orbitsim.physics.gravity.update_accelerations`.
+    :mod:`orbitsim.physics.gravity`.
     """
     G, eps2, slabs, bounds = force
     small = pos.shape[1] <= SMALL_N_MAX

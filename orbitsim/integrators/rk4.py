@@ -60,7 +60,7 @@ def advance(pos, vel, acc, m, force, dt, work, steps):
 
     ``work`` slots: x0, v0, sum of weighted k_x, sum of weighted k_v, current k_x. The force
     kernels are called from this loop, not through an inlined helper: see
-    :func:`orbitsim.physics.gravity.update_accelerations`.
+    :mod:`orbitsim.physics.gravity`.
     """
     G, eps2, slabs, bounds = force
     small = pos.shape[1] <= SMALL_N_MAX

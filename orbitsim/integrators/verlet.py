@@ -52,7 +52,7 @@ def advance(pos, vel, acc, m, force, dt, work, steps):
     The steps run back to back, so each closing kick is fused with the next step's opening kick
     and drift (:func:`_kick_kick_drift`); the state at the end is bit-identical to ``steps``
     separate steps. The force kernels are called from this loop, not through an inlined helper:
-    see :func:`orbitsim.physics.gravity.update_accelerations`.
+    see :mod:`orbitsim.physics.gravity`.
     """
     if steps < 1:
         return

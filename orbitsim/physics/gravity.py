@@ -27,6 +27,14 @@ measured (benchmarks/README.md):
 
 Every path is used by the serial and the parallel kernel alike (the parallel one hands a single
 block to the serial one), so the two stay bit-identical for every N and every partition.
+
+How the stepping loops call these kernels: each scheme's ``advance`` unpacks the force context of
+:func:`make_force` once and calls :func:`all_pairs_accelerations` (N <= SMALL_N_MAX) or
+:func:`accelerations` from its own loop body, not through an inlined helper. Numba gives an
+inlined function its own copies of its array arguments; each copy costs an atomic increment and
+decrement of the array's reference count, and LLVM's pruning pass keeps them when a call that may
+return an error lies between the two. Through such a helper a 5-body step paid ten of these calls
+per evaluation, 4-13% of the step (benchmarks/README.md, "Reference counts in the loop").
 """
 
 from __future__ import annotations
@@ -34,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_force, jit_inline, jit_parallel
+from orbitsim._jit import jit, jit_force, jit_parallel
 
 #: Smallest N for which the parallel kernel is faster than the serial one on this machine
 #: (measured crossover: see benchmarks/README.md; at N = 128 the thread start-up still dominates).
@@ -303,24 +311,3 @@ def make_force(G: float, softening: float, n: int) -> tuple[float, float, np.nda
     """The force context ``(G, eps2, slabs, bounds)`` every step receives, for N bodies."""
     slabs, bounds = force_scratch(n)
     return (float(G), float(softening) ** 2, slabs, bounds)
-
-
-@jit_inline
-def update_accelerations(pos, m, force, acc):
-    """Accelerations at ``pos`` into ``acc`` from a force context made by :func:`make_force`.
-
-    For one evaluation outside a stepping loop (the initial accelerations of a run). Small systems
-    go straight to :func:`all_pairs_accelerations`, the path :func:`accelerations_serial` takes
-    for them (same bits); ``make_force`` gives every N <= SMALL_N_MAX one block.
-
-    The stepping loops do not call this per step. Each scheme's ``advance`` unpacks the context
-    once and calls :func:`all_pairs_accelerations` or :func:`accelerations` from its loop body.
-    Numba gives an inlined function its own copies of its array arguments. Each copy costs an
-    atomic increment and decrement of the array's reference count, and LLVM's pruning pass keeps
-    them when a call that may return an error lies between the two. Through this helper a 5-body
-    step paid ten such calls per evaluation, 4-13% of the step (benchmarks/README.md).
-    """
-    if pos.shape[1] <= SMALL_N_MAX:
-        all_pairs_accelerations(pos, m, force[0], force[1], acc)
-    else:
-        accelerations(pos, m, force[0], force[1], acc, force[2], force[3])
