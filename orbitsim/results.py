@@ -8,7 +8,7 @@ The jitted ``run`` of an integrator writes samples into the :class:`SampleBuffer
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -41,6 +41,22 @@ class SampleChunk:
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+    def head(self, k: int) -> SampleChunk:
+        """The first ``k`` samples (views)."""
+        return SampleChunk(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[:k]
+                              for f in fields(self)})
+
+    def finite_energy_head(self) -> tuple[SampleChunk, np.ndarray, int | None]:
+        """The samples before the first whose energy T + U is not finite, their energies, and that
+        sample's index (None when every energy is finite, and the chunk is returned whole)."""
+        with np.errstate(all="ignore"):  # inf + -inf is what is looked for: no RuntimeWarning on stderr
+            energy = self.energy
+        finite = np.isfinite(energy)
+        if finite.all():
+            return self, energy, None
+        k = int(np.argmin(finite))
+        return self.head(k), energy[:k], k
 
 
 @dataclass

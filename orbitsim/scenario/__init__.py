@@ -27,10 +27,12 @@ Importing this package does not import numba; building a Scenario does (the inte
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.loader import TOP_KEYS, bundled_scenarios, config_dir, load_scenario, scenario_from_dict
 from orbitsim.scenario.model import DEFAULT_SAMPLES, FRAMES, POSITIONS_MAX_N, Scenario, resolve_steps
+from orbitsim.scenario.timing import MAX_STEPS
 
 __all__ = [
     "DEFAULT_SAMPLES",
     "FRAMES",
+    "MAX_STEPS",
     "POSITIONS_MAX_N",
     "TOP_KEYS",
     "Scenario",

@@ -8,6 +8,7 @@ bodies at one point) can still name the key to fix.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Any
@@ -133,6 +134,7 @@ def _read_body(item: Any, path: str, G: float, bodies: BodySet) -> None:
     bodies.add([name], [m], x, v, [path], [body.key("name")])
 
 
+@np.errstate(all="ignore")  # an overflow is reported as an error naming the key, not as a RuntimeWarning
 def _from_elements(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[np.ndarray, np.ndarray]:
     """Barycentric-frame-free state: the primary's state plus the relative Keplerian state."""
     from orbitsim.initial_conditions.elements import elements_to_cartesian
@@ -145,6 +147,9 @@ def _from_elements(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[n
                          f"one (known: {known})")
     m_primary, x_primary, v_primary = primary
     gm = G * (m_primary + m)
+    if not math.isfinite(gm):
+        raise body.error("m", f"G (m_primary + m) = {G:g} * ({m_primary:g} + {m:g}) overflows float64: use units in "
+                         "which the masses are smaller")
     if gm <= 0.0:
         raise body.error("m", f"{primary_name!r} and this body are both massless: orbital elements need "
                          "G (m_primary + m) > 0")
@@ -162,6 +167,11 @@ def _from_elements(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[n
                                      **{anomaly: body.number(anomaly)})
     except ValueError as err:
         raise ScenarioError(str(err), key=body.key(anomaly)) from None
+    except ArithmeticError:  # e.g. a = 1e-300: the state is not representable, reported below
+        r = v = np.array([math.nan])
+    if not (np.isfinite(r).all() and np.isfinite(v).all()):
+        raise body.error("a", f"the orbit's position or velocity overflows float64 (G (m_primary + m) = {gm:g}, "
+                         f"a = {a:g}): use units in which these numbers are closer to 1")
     return x_primary + r, v_primary + v
 
 
@@ -236,12 +246,15 @@ def _gib(nbytes: float) -> str:
     return f"{nbytes / 2**30:.3g} GiB"
 
 
+@np.errstate(all="ignore")  # an overflow is reported as an error naming the key, not as a RuntimeWarning
 def _read_generator(spec: Any, path: str, G: float, bodies: BodySet) -> None:
     """A Plummer sphere or a disc of test bodies, reproducible from its seed."""
     from orbitsim.initial_conditions.generators import disc, plummer
 
-    kind = Fields(spec, path, [k for keys in GENERATOR_KINDS.values() for k in keys], "generator").string(
-        "kind", choices=list(GENERATOR_KINDS))
+    kind = spec.get("kind") if isinstance(spec, dict) else None
+    if kind not in GENERATOR_KINDS:  # a known kind's own keys make the better "unknown key" message
+        every_key = dict.fromkeys(k for keys in GENERATOR_KINDS.values() for k in keys)  # each once
+        kind = Fields(spec, path, every_key, "generator").string("kind", choices=list(GENERATOR_KINDS))
     gen = Fields(spec, path, GENERATOR_KINDS[kind], f"{kind} generator")
     n = gen.integer("n", minimum=1)
     _check_memory(n, gen.key("n"))
@@ -265,6 +278,9 @@ def _read_generator(spec: Any, path: str, G: float, bodies: BodySet) -> None:
         m, x, v = disc(n, seed=seed, G=G, central_mass=gen.number("central_mass", 1.0, positive=True),
                        r_min=r_min, r_max=r_max, e_max=e_max, inc_max_deg=inc_max)
         names = [gen.string("star", "star"), *names]
+    if not all(np.isfinite(arr).all() for arr in (m, x, v)):
+        raise ScenarioError("the generated masses, positions or velocities overflow float64: use units in which "
+                            "the masses and radii are closer to 1", key=path)
     bodies.add(names, m, x, v, [path] * len(names), [gen.key("prefix")] * len(names))
 
 
@@ -273,7 +289,12 @@ def shift_to_barycentre(m: np.ndarray, x: np.ndarray, v: np.ndarray) -> tuple[np
     total = float(np.sum(m))
     if not total > 0.0:
         raise ScenarioError("frame: barycentric needs a positive total mass", key="frame")
-    return x - (m @ x) / total, v - (m @ v) / total
+    with np.errstate(all="ignore"):  # an overflow is reported below, not as a RuntimeWarning
+        shifted = x - (m @ x) / total, v - (m @ v) / total
+    if not (np.isfinite(shifted[0]).all() and np.isfinite(shifted[1]).all() and math.isfinite(total)):
+        raise ScenarioError("the centre of mass (sums of m x and m v) overflows float64: use units in which the "
+                            "masses, positions and velocities are smaller", key="frame")
+    return shifted
 
 
 def check_coincident(x: np.ndarray, names: list[str] | tuple[str, ...], origins: list[str] | None,

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.timing import MAX_STEPS, steps_limit_error
 
 __all__ = ["MISSING", "Fields", "check_count", "check_number", "describe", "join_path", "unknown_key_error"]
 
@@ -49,7 +50,7 @@ def describe(value: Any) -> str:
 
 def unknown_key_error(key: str, path: str, allowed: Iterable[str]) -> ScenarioError:
     """Error for an unknown key, suggesting the closest valid one (``difflib``)."""
-    allowed = list(allowed)
+    allowed = list(dict.fromkeys(allowed))  # each key once, in first-seen order
     close = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
     hint = f"did you mean {close[0]!r}?" if close else f"valid keys here: {', '.join(allowed)}"
     return ScenarioError(f"unknown key {key!r}; {hint}", key=join_path(path, key))
@@ -106,20 +107,28 @@ class Fields:
         value = self.raw(name, default)
         return value if value is None else check_number(value, self.key(name), minimum=minimum, positive=positive)
 
-    def integer(self, name: str, default: Any = MISSING, *, minimum: int | None = None) -> int:
-        """A whole number (``1000`` or ``1e3``), optionally ``>= minimum``."""
+    def integer(self, name: str, default: Any = MISSING, *, minimum: int | None = None,
+                steps: bool = False) -> int:
+        """A whole number (``1000`` or ``1e3``), optionally ``>= minimum``; a count of ``steps`` is at
+        most :data:`~orbitsim.scenario.timing.MAX_STEPS`."""
         value = self.raw(name, default)
         if value is None:
             return value
-        number = check_number(value, self.key(name))
-        if number != math.floor(number):
+        number: float | int = check_number(value, self.key(name))
+        if isinstance(value, int | np.integer) and not isinstance(value, bool):
+            number = int(value)  # exact: as a float, 2**53 + 1 would round to 2**53
+        elif number != math.floor(number):
             raise self.error(name, f"must be a whole number, got {value}")
         if minimum is not None and number < minimum:
             raise self.error(name, f"must be >= {minimum}, got {value}")
+        if steps and number > MAX_STEPS:
+            raise steps_limit_error(f"{value} steps", self.key(name), _steps_fix(self.key(name)))
         return int(number)
 
-    def string(self, name: str, default: Any = MISSING, *, choices: Iterable[str] | None = None) -> str:
-        """A string, optionally one of ``choices``."""
+    def string(self, name: str, default: Any = MISSING, *, choices: Iterable[str] | None = None,
+               fold_case: bool = False) -> str:
+        """A string, optionally one of ``choices``; with ``fold_case`` any case of a choice gives that
+        choice (``AU-yr-Msun`` -> ``au-yr-msun``)."""
         value = self.raw(name, default)
         if value is None:
             return value
@@ -127,6 +136,8 @@ class Fields:
             raise self.error(name, f"expected text, got {describe(value)}")
         if choices is not None:
             options = list(choices)
+            if fold_case:
+                value = next((o for o in options if o.casefold() == value.casefold()), value)
             if value not in options:
                 close = difflib.get_close_matches(value, options, n=1, cutoff=0.6)
                 hint = f"did you mean {close[0]!r}?" if close else f"valid values: {', '.join(options)}"
@@ -178,7 +189,16 @@ def check_number(value: Any, key: str, *, minimum: float | None = None, positive
 
 
 def check_count(value: Any, key: str) -> int:
-    """``value`` as a whole number >= 1 (a Python or numpy integer; never a bool)."""
+    """``value`` as a count of steps: a whole number from 1 to :data:`~orbitsim.scenario.timing.MAX_STEPS`
+    (a Python or numpy integer; never a bool)."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
         raise ScenarioError(f"must be a whole number >= 1, got {describe(value)}", key=key)
+    if value > MAX_STEPS:
+        raise steps_limit_error(f"{value} steps", key, _steps_fix(key))
     return int(value)
+
+
+def _steps_fix(key: str) -> str:
+    """How to fix a step count beyond the limit, by its key."""
+    fixes = {"output.every": "sample more often", "output.checkpoint.every": "checkpoint more often"}
+    return fixes.get(key, "shorten the run or use a longer dt")

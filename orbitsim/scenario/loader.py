@@ -158,13 +158,13 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     if doc is None:
         raise ScenarioError("the scenario is empty: it needs at least integrator, dt, steps or t_end, and bodies")
     top = Fields(doc, "", TOP_KEYS, "scenario")
-    units = top.string("units", "nbody", choices=list(UNIT_SYSTEMS))
+    units = top.string("units", "nbody", choices=list(UNIT_SYSTEMS), fold_case=True)
     G = top.number("G", UNIT_SYSTEMS[units].G, positive=True)
     integrator, settings = _read_integrator(top)
     dt = top.number("dt", positive=True)
     t_end = None
     if top.one_of("steps", "t_end") == "steps":
-        steps = top.integer("steps", minimum=1)
+        steps = top.integer("steps", minimum=1, steps=True)
     else:
         t_end = top.number("t_end", positive=True)
         steps = resolve_steps(t_end, dt)[0]
@@ -174,7 +174,7 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     frame = top.string("frame", "as_given", choices=FRAMES)
     name = top.string("name", default_name)
     description = top.string("description", "")
-    every = output.integer("every", None, minimum=1)
+    every = output.integer("every", None, minimum=1, steps=True)
     interval = output.number("interval", None, positive=True)
     positions = output.boolean("positions", None)
     checkpoint_every, checkpoint_seconds = _read_checkpoint(output)
@@ -183,11 +183,13 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     if frame == "barycentric":
         x, v = shift_to_barycentre(m, x, v)
     check_coincident(x, bodies.names, bodies.origins, softening)
-    return Scenario(name=name, description=description, units=units, G=G, integrator=integrator,
-                    integrator_settings=settings, dt=dt, steps=steps, t_end=t_end, every=every,
-                    interval=interval, record_positions=positions, softening=softening, frame=frame,
-                    names=tuple(bodies.names), masses=m, positions=x, velocities=v, source=source,
-                    checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds)
+    scenario = Scenario(name=name, description=description, units=units, G=G, integrator=integrator,
+                        integrator_settings=settings, dt=dt, steps=steps, t_end=t_end, every=every,
+                        interval=interval, record_positions=positions, softening=softening, frame=frame,
+                        names=tuple(bodies.names), masses=m, positions=x, velocities=v, source=source,
+                        checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds)
+    scenario.remember_origins(bodies.origins)
+    return scenario
 
 
 def _read_checkpoint(output: Fields) -> tuple[int | None, float | None]:
@@ -195,7 +197,7 @@ def _read_checkpoint(output: Fields) -> tuple[int | None, float | None]:
     if not output.has("checkpoint"):
         return None, None
     section = Fields(output.raw("checkpoint"), "output.checkpoint", CHECKPOINT_KEYS, "checkpoint section")
-    every = section.integer("every", None, minimum=1)
+    every = section.integer("every", None, minimum=1, steps=True)
     seconds = section.number("seconds", None, positive=True)
     if every is None and seconds is None:
         raise ScenarioError("give every (steps) and/or seconds (wall time) between checkpoints",

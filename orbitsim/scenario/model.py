@@ -22,7 +22,7 @@ from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_count, check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
-from orbitsim.scenario.timing import resolve_steps
+from orbitsim.scenario.timing import MAX_STEPS, resolve_steps, steps_limit_error
 from orbitsim.scenario.yamlio import dump_value, format_float
 
 if TYPE_CHECKING:
@@ -124,6 +124,8 @@ class Scenario:
             raise ScenarioError(f"expected text, got {describe(self.description)}", key="description")
         from orbitsim.units import UNIT_SYSTEMS
 
+        if isinstance(self.units, str):  # unit-system names are case-insensitive, stored lower case
+            self._set("units", self.units.strip().lower())
         if self.units not in UNIT_SYSTEMS:
             raise ScenarioError(f"unknown unit system {self.units!r}; valid: {', '.join(UNIT_SYSTEMS)}",
                                 key="units")
@@ -179,6 +181,9 @@ class Scenario:
     def _validate_time(self) -> None:
         self._set("dt", check_number(self.dt, "dt", positive=True))
         self._set("steps", check_count(self.steps, "steps"))
+        if not math.isfinite(self.steps * self.dt):
+            raise ScenarioError(f"steps * dt = {self.steps} * {self.dt:g} overflows float64: use a smaller dt "
+                                "(or other units)", key="dt")
         if self.t_end is not None:
             self._set("t_end", check_number(self.t_end, "t_end", positive=True))
             expected, _ = resolve_steps(self.t_end, self.dt)
@@ -191,6 +196,9 @@ class Scenario:
             self._set("every", check_count(self.every, "output.every"))
         if self.interval is not None:
             self._set("interval", check_number(self.interval, "output.interval", positive=True))
+            if not self.interval / self.dt <= MAX_STEPS:  # sample numbers become steps of dt
+                raise steps_limit_error(f"output.interval / dt = {self.interval / self.dt:.3g} steps",
+                                        "output.interval", "sample more often")
         self._validate_checkpoint()
 
     def _validate_checkpoint(self) -> None:
@@ -325,4 +333,22 @@ class Scenario:
         ScenarioError
             For an unknown field or an invalid value (naming the field).
         """
-        return dataclasses.replace(self, **resolve_overrides(self, changes))
+        fields = resolve_overrides(self, changes)
+        new = dataclasses.replace(self, **fields)
+        if not {"names", "masses", "positions", "velocities"} & fields.keys():
+            new.remember_origins(self.origins)
+        return new
+
+    def remember_origins(self, origins: Any) -> None:
+        """Record where each body came from in the file (``"bodies[2]"``, ``"generator"``), so a later
+        check of the whole system (:mod:`orbitsim.preflight`) can name the key to fix.
+
+        Not a field: it says nothing about what is run, so it is neither serialised nor hashed.
+        """
+        if origins is not None and len(origins) == self.n_bodies:
+            self._set("_origins", tuple(origins))
+
+    @property
+    def origins(self) -> tuple[str, ...] | None:
+        """Key path each body came from, when the scenario was loaded from a file; else None."""
+        return self.__dict__.get("_origins")

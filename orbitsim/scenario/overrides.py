@@ -74,7 +74,11 @@ def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
         changes["t_end"] = None
         return
     t_end = changes.get("t_end", scenario.t_end)
+    blame = "t_end" if "t_end" in changes or "dt" not in changes else "dt"  # a file's t_end with a new dt
     if t_end is not None:
         t_end = check_number(t_end, "t_end", positive=True)
         changes["t_end"] = t_end
-        changes["steps"] = resolve_steps(t_end, dt)[0]
+        try:
+            changes["steps"] = resolve_steps(t_end, dt)[0]
+        except ScenarioError as err:
+            raise ScenarioError(err.reason, key=blame) from None

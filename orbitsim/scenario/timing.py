@@ -3,6 +3,9 @@
 A step is never shortened, so ``t_end`` resolves to the largest step count with
 ``steps * dt <= t_end``, except that a ``t_end`` a whole number of steps long up to round-off
 means exactly that many steps.
+
+Every step count of a scenario (``steps``, ``t_end / dt``, ``output.every``,
+``output.interval / dt``, ``output.checkpoint.every``) is at most :data:`MAX_STEPS`.
 """
 
 from __future__ import annotations
@@ -11,7 +14,13 @@ import math
 
 from orbitsim.scenario.errors import ScenarioError
 
-__all__ = ["resolve_steps"]
+__all__ = ["MAX_STEPS", "resolve_steps", "steps_limit_error"]
+
+#: The most steps a scenario may count: 2**53. A sample's time is ``step * dt`` in float64, which
+#: holds every whole number exactly only up to 2**53; beyond it two steps can share one time (and
+#: beyond 2**63 a step no longer fits the int64 ``step`` column at all). At 10^8 steps a second
+#: this is still three years of stepping, so no real run is refused.
+MAX_STEPS = 2**53
 
 #: t_end / dt within this relative distance of a whole number counts as whole: ``t_end = 1`` with
 #: ``dt = 0.1`` gives 9.999999999999998 by round-off and must mean 10 steps, not 9.
@@ -24,9 +33,18 @@ def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
     Raises
     ------
     ScenarioError
-        When not even one step fits.
+        When not even one step fits, or more than :data:`MAX_STEPS` do.
     """
     ratio = t_end / dt
+    if not ratio <= 2.0 * MAX_STEPS:  # also inf (1e308 / 0.01) and nan, which round() cannot take
+        raise steps_limit_error(f"t_end / dt = {ratio:.3g} steps", "t_end")
+    steps, whole = _whole_steps(t_end, dt, ratio)
+    if steps > MAX_STEPS:
+        raise steps_limit_error(f"t_end / dt = {ratio:.3g} steps", "t_end")
+    return steps, whole
+
+
+def _whole_steps(t_end: float, dt: float, ratio: float) -> tuple[int, bool]:
     nearest = round(ratio)
     if nearest >= 1 and abs(ratio - nearest) <= _WHOLE_STEPS_RTOL * ratio:
         return int(nearest), True
@@ -39,3 +57,9 @@ def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
     if steps < 1:
         raise ScenarioError(f"t_end = {t_end:g} is shorter than one step (dt = {dt:g})", key="t_end")
     return steps, False
+
+
+def steps_limit_error(what: str, key: str, fix: str = "shorten the run or use a longer dt") -> ScenarioError:
+    """The error for a step count beyond :data:`MAX_STEPS`; ``what`` says what was counted."""
+    return ScenarioError(f"{what} is beyond the limit of {MAX_STEPS} steps (2**53: sample times step * dt are "
+                         f"exact in float64 only up to there); {fix}", key=key)
