@@ -38,6 +38,22 @@ class LazyGroup(click.Group):
     def list_commands(self, ctx: click.Context) -> list[str]:
         return [name for name, (module, _) in COMMANDS.items() if _module_exists(module)]
 
+    def invoke(self, ctx: click.Context) -> object:
+        """Run the subcommand; a usage error (``--steps 0``, an unknown option) is one line, exit 2.
+
+        Click shows such errors as its usage text followed by ``Error: ...``; every orbitsim
+        error is ``orbitsim: error: ...`` on one line instead, with where to read more.
+        """
+        from orbitsim.cli.options import OneLineUsageError
+
+        try:
+            return super().invoke(ctx)
+        except click.UsageError as err:
+            if isinstance(err, OneLineUsageError):
+                raise
+            where = err.ctx.command_path if err.ctx is not None else "orbitsim"
+            raise OneLineUsageError(f"{err.format_message().rstrip('.')}; see `{where} --help`") from None
+
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         entry = COMMANDS.get(cmd_name)
         if entry is None or not _module_exists(entry[0]):

@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from orbitsim.cli.errors import fail, reports_errors
-from orbitsim.cli.options import force_option, trace_argument
+from orbitsim.cli.options import OneLineUsageError, force_option, trace_argument
 
 #: Samples read for the orbit panel at most (strided); enough for a smooth curve.
 MAX_PLOT_SAMPLES = 4000
@@ -20,7 +20,7 @@ MAX_LEGEND = 12
 
 @click.command("plot")
 @trace_argument()
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+@click.option("-o", "--output", type=click.Path(), default=None,  # a directory is refused in one line below
               help="Figure file; the format follows the suffix (.png, .pdf, .svg). Default: the trace's "
                    "name with .png. Example: -o orbit.png")
 @force_option()
@@ -35,8 +35,9 @@ def command(trace: str, output: str | None, force: bool) -> None:
     """
     from orbitsim.io.trace import open_trace_summary
 
-    summary = open_trace_summary(trace)  # checks the format before anything is drawn
     target = Path(output) if output is not None else Path(trace).with_suffix(".png")
+    _check_figure_path(output or str(target), Path(trace).stem)  # before the trace is read
+    summary = open_trace_summary(trace)  # checks the format before anything is drawn
     if target.exists() and not force:
         fail(f"{target}: figure already exists; use --force to overwrite it")
     if not target.parent.is_dir():
@@ -44,6 +45,28 @@ def command(trace: str, output: str | None, force: bool) -> None:
     data = _read(trace, summary)
     _draw(data, summary["attrs"], target)
     click.echo(f"wrote {target}")
+
+
+def figure_formats() -> list[str]:
+    """The file suffixes (without the dot) matplotlib can write a figure as."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return sorted(FigureCanvasBase.get_supported_filetypes())
+
+
+def _check_figure_path(given: str, stem: str) -> None:
+    """Refuse a directory, or a suffix matplotlib cannot write (``x.mp4``), in one line.
+
+    A name with no suffix is refused too: matplotlib would write ``name.png``, not the file asked for.
+    """
+    target = Path(given)
+    if target.is_dir():
+        raise OneLineUsageError(f"{given}: is a directory; give a file name such as {target / stem}.png")
+    suffix = target.suffix.lower().lstrip(".")
+    formats = figure_formats()
+    if suffix not in formats:
+        what = f"cannot write .{suffix} figures" if suffix else "needs a suffix to choose the figure format"
+        raise OneLineUsageError(f"{given}: matplotlib {what}; give one of {', '.join('.' + f for f in formats)}")
 
 
 def _read(path: str, summary: dict[str, Any]) -> dict[str, Any]:

@@ -11,6 +11,9 @@ import numpy as np
 
 from orbitsim.io.schema import BODY_ARRAYS, SCALARS, TRACE_FORMAT, TRACE_VERSION, VECTORS, TraceError, py_value
 
+#: Per-body datasets of the ``bodies`` group, each of length N.
+BODY_DATASETS = ("bodies/names", "bodies/masses")
+
 __all__ = ["Trace", "open_trace", "open_trace_summary", "read_trace"]
 
 
@@ -52,6 +55,11 @@ def _open_checked(path: str | os.PathLike) -> h5py.File:
     fmt = py_value(f.attrs.get("format"))
     version = py_value(f.attrs.get("format_version"))
     if fmt == TRACE_FORMAT and version == TRACE_VERSION:
+        try:
+            _check_datasets(f, p)
+        except BaseException:
+            f.close()
+            raise
         return f
     f.close()
     if fmt is None:
@@ -59,6 +67,46 @@ def _open_checked(path: str | os.PathLike) -> h5py.File:
     if fmt != TRACE_FORMAT:
         raise TraceError(f"{p}: not an orbitsim trace (format is {fmt!r}, expected {TRACE_FORMAT!r})")
     raise TraceError(f"{p}: unsupported trace format_version {version!r} (supported: {TRACE_VERSION})")
+
+
+def _check_datasets(f: h5py.File, path: str) -> None:
+    """Raise TraceError unless every dataset the writer creates is there with matching lengths.
+
+    The writer creates all of them when it opens the file, so one missing, or of another length
+    than ``time``, means the file was damaged or edited after the fact; saying which here spares
+    every reader a ``KeyError`` or ``IndexError``. Only shapes are read (metadata, no data).
+    """
+    shapes: dict[str, tuple[int, ...]] = {}
+    for name in (*SCALARS, *VECTORS, *BODY_ARRAYS, *BODY_DATASETS):
+        obj = f.get(name)
+        if obj is None:
+            if name in BODY_ARRAYS:
+                continue  # positions were not recorded
+            raise TraceError(f"{path}: damaged trace: dataset '{name}' is missing")
+        if not isinstance(obj, h5py.Dataset):
+            raise TraceError(f"{path}: damaged trace: '{name}' is not a dataset")
+        shapes[name] = obj.shape
+    recorded = [name for name in BODY_ARRAYS if name in shapes]
+    if recorded and len(recorded) < len(BODY_ARRAYS):
+        missing = next(name for name in BODY_ARRAYS if name not in shapes)
+        raise TraceError(f"{path}: damaged trace: dataset '{missing}' is missing (it is written with '{recorded[0]}')")
+    n_samples, n_bodies = _first_dim(shapes["time"]), _first_dim(shapes["bodies/masses"])
+    for name, shape in shapes.items():
+        if name in BODY_DATASETS:
+            if _first_dim(shape) != n_bodies:
+                raise TraceError(f"{path}: damaged trace: dataset '{name}' has {_first_dim(shape)} bodies, "
+                                 f"'bodies/masses' has {n_bodies}")
+        elif _first_dim(shape) != n_samples:
+            raise TraceError(f"{path}: damaged trace: dataset '{name}' has {_first_dim(shape)} samples, "
+                             f"'time' has {n_samples}")
+        elif name in BODY_ARRAYS and shape[1:2] != (n_bodies,):
+            raise TraceError(f"{path}: damaged trace: dataset '{name}' has shape {shape}, expected "
+                             f"({n_samples}, {n_bodies}, 3)")
+
+
+def _first_dim(shape: tuple[int, ...] | None) -> int:
+    """Length along the first axis (a scalar dataset, shape ``()``, has none: -1)."""
+    return int(shape[0]) if shape else -1
 
 
 def open_trace(path: str | os.PathLike) -> h5py.File:
@@ -79,7 +127,8 @@ def read_trace(path: str | os.PathLike) -> Trace:
     ------
     TraceError
         If the file is missing, not HDF5, not an orbitsim trace, of an unsupported
-        version, or lacks a required dataset.
+        version, or damaged: a required dataset missing, or one of another length than
+        ``time`` (the message names it).
     """
     with _open_checked(path) as f:
         try:
