@@ -44,6 +44,8 @@ def test_compare_passes_and_writes_every_file(circular: tuple[Path, int, str]) -
 def test_summary_json_has_runs_pairs_and_verdict(circular: tuple[Path, int, str]) -> None:
     summary = json.loads((circular[0] / "summary.json").read_text())
     assert summary["format"] == "orbitsim.compare.summary" and summary["passed"] is True
+    assert summary["verdict"] == "pass" and summary["untestable_pairs"] == []
+    assert summary["reference"]["reliable"] is True and summary["reference"]["max_abs_energy_error"] < 1e-12
     labels = [r["label"] for r in summary["runs"]]
     assert labels == ["orbitsim/verlet", "orbitsim/leapfrog", "orbitsim/leapfrog4", "rebound/leapfrog_order2",
                       "rebound/leapfrog_order4", "rebound/whfast", "reference/ias15"]
@@ -56,6 +58,7 @@ def test_summary_json_has_runs_pairs_and_verdict(circular: tuple[Path, int, str]
     assert "orbitsim leapfrog4 <-> REBOUND leapfrog (order 4)" in pairs
     for pair in pairs.values():
         assert pair["agree"] and pair["max_relative_position_difference"] < 1e-11 < pair["tolerance"] < 1
+        assert pair["verdict"] == "agree" and pair["untestable_from"] is None
     assert summary["provenance"]["rebound_version"] != "not installed"
 
 
@@ -104,6 +107,7 @@ def test_outer_solar_system_defaults(tmp_path: Path) -> None:
     labels = {r["label"] for r in summary["runs"]}
     assert {"orbitsim/leapfrog4", "rebound/leapfrog_order4", "rebound/whfast"} <= labels
     assert all(p["agree"] for p in summary["pairs"]) and len(summary["pairs"]) >= 2
+    assert summary["verdict"] == "pass"
 
 
 @pytest.mark.parametrize("args, message", [
@@ -126,5 +130,6 @@ def test_existing_results_need_force(circular: tuple[Path, int, str]) -> None:
 def test_help_documents_defaults() -> None:
     code, stdout, _ = invoke("compare", "--help")
     assert code == 0
-    for word in ("--integrators", "--rebound", "--pair", "leapfrog4", "whfast", "IAS15", "Exit status"):
+    for word in ("--integrators", "--rebound", "--pair", "leapfrog4", "whfast", "IAS15", "Exit status",
+                 "chaotic", "not testable", "5  no pair disagrees"):
         assert word in stdout

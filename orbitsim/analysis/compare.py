@@ -18,7 +18,15 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.metrics import PairVerdict, RunMetrics, pair_verdict, run_metrics
+from orbitsim.analysis.metrics import (
+    AGREE,
+    DISAGREE,
+    PairVerdict,
+    RunMetrics,
+    pair_verdict,
+    reference_problem,
+    run_metrics,
+)
 from orbitsim.analysis.record import RunRecord, record_from_result
 from orbitsim.reference.bridge import ReboundScheme, parse_rebound_scheme
 from orbitsim.reference.pairs import (
@@ -86,16 +94,37 @@ class CompareResult:
     metrics: dict[str, RunMetrics]
     verdicts: list[PairVerdict]
     notes: list[str] = field(default_factory=list)
+    #: Why the IAS15 reference cannot be trusted (see ``metrics.reference_problem``), or "".
+    reference_problem: str = ""
 
     @property
     def passed(self) -> bool:
-        """True when every matched pair agrees within its tolerance."""
-        return all(v.agree for v in self.verdicts)
+        """True when every matched pair agrees, testably, against a trustworthy reference."""
+        return self.verdict == "pass"
 
     @property
     def failed_pairs(self) -> list[str]:
         """Names of the pairs that disagree."""
-        return [v.name for v in self.verdicts if not v.agree]
+        return [v.name for v in self.verdicts if v.verdict == DISAGREE]
+
+    @property
+    def untestable_pairs(self) -> list[str]:
+        """Names of the pairs within tolerance whose agreement tests nothing (chaos, bad reference)."""
+        return [v.name for v in self.verdicts if v.verdict not in (AGREE, DISAGREE)]
+
+    def untestable_reasons(self) -> list[str]:
+        """Why the comparison is not a pass although no pair disagrees, one clause per cause."""
+        if self.reference_problem:  # it makes every pair untestable: say it once
+            return [f"reference unreliable: {self.reference_problem}"]
+        return [f"{v.name}: {v.short_reason()}" for v in self.verdicts if v.name in self.untestable_pairs]
+
+    @property
+    def verdict(self) -> str:
+        """``fail`` if a pair disagrees, else ``not_testable`` if a pair (or the reference) cannot be
+        judged, else ``pass``."""
+        if self.failed_pairs:
+            return "fail"
+        return "not_testable" if self.untestable_pairs or self.reference_problem else "pass"
 
     def record(self, label: str) -> RunRecord:
         """The run with ``label`` (``engine/key``)."""
@@ -178,13 +207,15 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
     runs = [_announce(run_orbitsim(scenario, name, plan, threads=threads), say) for name in names]
     runs += [_announce(_run_rebound(scenario, s, plan, names), say) for s in schemes]
     reference = _announce(_reference(scenario, plan, run_reference), say)
+    ref_problem = reference_problem(reference)
     twins = {s.key: _run_rebound(scenario, s, plan, names, twin=True)
              for s in dict.fromkeys(p.rebound for p in pairs)}
     by_label = {r.label: r for r in runs}
     verdicts = [pair_verdict(p, by_label[f"orbitsim/{p.orbitsim}"], by_label[f"rebound/{p.rebound.key}"],
-                             twins.get(p.rebound.key)) for p in pairs]
+                             twins.get(p.rebound.key), ref_problem=ref_problem) for p in pairs]
     metrics = {r.label: run_metrics(r, reference) for r in [*runs, reference]}
-    return CompareResult(scenario, runs, reference, twins, metrics, verdicts, _skipped_notes(names, schemes))
+    return CompareResult(scenario, runs, reference, twins, metrics, verdicts, _skipped_notes(names, schemes),
+                         ref_problem)
 
 
 def _reference(scenario: Any, plan: np.ndarray, run_reference: Callable[..., RunRecord]) -> RunRecord:

@@ -1,15 +1,22 @@
 """The files ``orbitsim compare`` writes: compare.h5, summary.json, report.md/.html and figures.
 
-``summary.json`` (format ``orbitsim.compare.summary``, version 1) holds, besides provenance:
+``summary.json`` (format ``orbitsim.compare.summary``, version 2) holds, besides provenance:
 
 * ``scenario``: name, source, sha256, bodies, G, softening, dt, steps, t_end, samples;
 * ``runs``: one entry per run (label, engine, integrator, display, order, options, dt, steps,
   samples, status, message, max_abs_energy_error, energy_drift_slope, final_position_error,
   wall_time_s, steps_per_second), the reference last;
+* ``reference``: label, max_abs_energy_error, energy_limit, reliable, problem;
 * ``pairs``: one per matched pair (name, orbitsim, rebound, reason, builtin,
-  max_relative_position_difference, time_of_max, tolerance, allowed_at_max, nominal_tolerance, twin_max,
-  worst_ratio, agree, note);
-* ``passed`` and ``failed_pairs``: the verdict behind the exit code.
+  max_relative_position_difference, time_of_max, tolerance, allowed_at_max, tolerance_source,
+  max_allowed, testable_limit, untestable_from, nominal_tolerance, twin_max, worst_ratio,
+  within_tolerance, verdict, verdict_label, agree, note); ``agree`` is true only for a pass;
+* ``verdict`` (``pass``, ``fail`` or ``not_testable``), ``passed``, ``failed_pairs`` and
+  ``untestable_pairs``: the verdict behind the exit code (0, 1 and 5).
+
+Version 2 added ``reference``, ``verdict``, ``untestable_pairs`` and the per-pair verdict fields,
+and made ``agree`` and ``passed`` false for a comparison that agrees only within a tolerance too
+loose to test anything (version 1 called that a pass).
 
 Non-finite numbers are written as ``null`` so the file is strict JSON.
 """
@@ -20,10 +27,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-import h5py
-
 from orbitsim.analysis.compare import CompareResult
 from orbitsim.analysis.figures import compare_figures
+from orbitsim.analysis.metrics import REFERENCE_ENERGY_LIMIT, TESTABLE_LIMIT
 from orbitsim.analysis.report import (
     Figure,
     Report,
@@ -35,10 +41,11 @@ from orbitsim.analysis.report import (
     scenario_table,
 )
 from orbitsim.analysis.tracegroup import write_file_attrs, write_trace_group
+from orbitsim.io.h5safe import in_memory, new_file
 from orbitsim.provenance import provenance
 
 SUMMARY_FORMAT = "orbitsim.compare.summary"
-SUMMARY_VERSION = 1
+SUMMARY_VERSION = 2
 
 _FIGURE_CAPTIONS = {
     "energy": "Relative energy error |dE/E| against time (log axes): orbitsim left, REBOUND right, "
@@ -73,16 +80,25 @@ def summary_dict(result: CompareResult, command: str) -> dict[str, Any]:
         "name": v.name, "orbitsim": v.orbitsim_label, "rebound": v.rebound_label, "reason": v.pair.reason,
         "builtin": v.pair.builtin, "max_relative_position_difference": v.max_difference,
         "time_of_max": v.time_of_max, "tolerance": v.tolerance, "allowed_at_max": v.allowed_at_max,
-        "nominal_tolerance": v.nominal_tolerance,
-        "twin_max": v.twin_max, "worst_ratio": v.worst_ratio, "agree": v.agree, "note": v.note,
+        "tolerance_source": "twin" if v.twin_limited else "nominal", "max_allowed": v.max_allowed,
+        "testable_limit": TESTABLE_LIMIT, "untestable_from": v.untestable_from,
+        "nominal_tolerance": v.nominal_tolerance, "twin_max": v.twin_max, "worst_ratio": v.worst_ratio,
+        "within_tolerance": v.within_tolerance, "verdict": v.verdict, "verdict_label": v.label,
+        "agree": v.agree, "note": v.note,
     } for v in result.verdicts]
+    ref = result.reference
+    reference = {"label": ref.label, "max_abs_energy_error": result.metrics[ref.label].max_abs_energy_error,
+                 "energy_limit": REFERENCE_ENERGY_LIMIT, "reliable": not result.reference_problem,
+                 "problem": result.reference_problem}
     steps = _steps(result)
     scenario = {"name": sc.name, "source": str(getattr(sc, "source", "")), "sha256": getattr(sc, "sha256", ""),
                 "bodies": len(sc.masses), "G": sc.G, "softening": sc.softening, "dt": sc.dt, "steps": steps,
                 "t_end": steps * sc.dt, "samples": result.reference.n_samples}
     return json_safe({"format": SUMMARY_FORMAT, "format_version": SUMMARY_VERSION, "command": command,
-                   "scenario": scenario, "runs": runs, "pairs": pairs, "passed": result.passed,
-                   "failed_pairs": result.failed_pairs, "notes": result.notes, "provenance": provenance()})
+                   "scenario": scenario, "runs": runs, "reference": reference, "pairs": pairs,
+                   "verdict": result.verdict, "passed": result.passed, "failed_pairs": result.failed_pairs,
+                   "untestable_pairs": result.untestable_pairs, "notes": result.notes,
+                   "provenance": provenance()})
 
 
 def write_h5(result: CompareResult, path: Path, command: str) -> Path:
@@ -92,10 +108,14 @@ def write_h5(result: CompareResult, path: Path, command: str) -> Path:
     attrs = {"scenario": yaml_text, "scenario_sha256": str(getattr(sc, "sha256", "")),
              "G": float(sc.G), "softening": float(sc.softening), "units": str(getattr(sc, "units", ""))}
     tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as f:
-        write_file_attrs(f, {**attrs, "command": command, "passed": result.passed})
+    # Each group is built in memory and copied in whole, so that a full disk is one clean error.
+    with new_file(tmp) as f:
+        write_file_attrs(f, {**attrs, "command": command, "passed": result.passed, "verdict": result.verdict})
         for rec in [*result.runs, *result.twins.values(), result.reference]:
-            write_trace_group(f, rec.label, rec, names=list(sc.names), masses=sc.masses, attrs=attrs)
+            with in_memory() as memory:
+                group = write_trace_group(memory, rec.label, rec, names=list(sc.names), masses=sc.masses,
+                                          attrs=attrs)
+                f.copy(group, rec.label)
     tmp.replace(path)  # a compare.h5 that exists is complete
     return path
 
@@ -104,25 +124,32 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
     """The comparison report: verdict, scenario, runs, pairs, figures, reproduction."""
     sc = result.scenario
     time_unit = _time_unit(sc)
-    lead = [_verdict_line(result)]
+    lead = [_verdict_line(result)]  # names an unreliable reference too
     runs = Table(["run", "order", "steps", "max |dE/E|", f"dE/E drift [1/{time_unit}]",
                   "final pos. error vs ref.", "wall time [s]", "steps/s", "status"], [])
     for rec in [*result.runs, result.reference]:
         m = result.metrics[rec.label]
+        status = rec.status + (f": {rec.message}" if rec.message else "")
+        if rec is result.reference and result.reference_problem:
+            status += f"; UNRELIABLE as a reference (max |dE/E| > {REFERENCE_ENERGY_LIMIT:g})"
         runs.rows.append([rec.display, fmt(rec.order), str(rec.steps_done), fmt(m.max_abs_energy_error),
                           fmt(m.energy_drift_slope), fmt(m.final_position_error), fmt(m.wall_time_s),
-                          fmt(m.steps_per_second), rec.status + (f": {rec.message}" if rec.message else "")])
+                          fmt(m.steps_per_second), status])
     runs.caption = ("Reference steps are IAS15's adaptive steps. Wall time: orbitsim, the whole sampled run "
                     "(its diagnostics are computed inside the compiled loop), after Numba's compile/cache "
                     "load; REBOUND, the time inside sim.steps() only, without reading samples back.")
     pairs = Table(["pair", "max rel. position difference", f"at t [{time_unit}]", "allowed there",
-                   "worst difference / allowed", "twin divergence", "verdict", "why they should agree"], [
-        [v.name, fmt(v.max_difference), fmt(v.time_of_max), fmt(v.allowed_at_max), fmt(v.worst_ratio, 2),
-         fmt(v.twin_max), ("agree" if v.agree else "DISAGREE") + (f" ({v.note})" if v.note else ""),
-         v.pair.reason]
+                   "allowed set by", "worst difference / allowed", "twin divergence", "verdict",
+                   "why they should agree"], [
+        [v.name, fmt(v.max_difference), fmt(v.time_of_max), fmt(v.allowed_at_max), v.tolerance_source(),
+         fmt(v.worst_ratio, 2), fmt(v.twin_max), v.label + (f" ({v.note})" if v.note else ""), v.pair.reason]
         for v in result.verdicts])
     pairs.caption = ("Tolerance: max(1e-9 (n/1e4)^1.5, 100 x twin divergence), where the twin is REBOUND "
-                     "rerun from positions scaled by 1 + 2^-50 (see docs/compare.md).")
+                     "rerun from positions scaled by 1 + 2^-50; differences are relative to the system's size "
+                     "(the largest distance of a body from the origin). Where the tolerance exceeds "
+                     f"{TESTABLE_LIMIT:g} of that size the agreement is not testable, and where the IAS15 "
+                     f"reference's |dE/E| exceeds {REFERENCE_ENERGY_LIMIT:g} neither is any verdict "
+                     "(see docs/compare.md).")
     sections = [Section("Scenario", [scenario_table(sc, steps=_steps(result), samples=result.reference.n_samples)]),
                 Section("Runs", [runs])]
     sections.append(Section("Matched pairs", [pairs] if result.verdicts else ["No matched pairs were run."]))
@@ -140,11 +167,15 @@ def _time_unit(scenario: Any) -> str:
 
 
 def _verdict_line(result: CompareResult) -> str:
+    untestable = "; ".join(result.untestable_reasons())
+    if result.verdict == "fail":
+        failed = [f"{name} disagrees" for name in result.failed_pairs]
+        return "FAIL: " + "; ".join([*failed, f"not testable: {untestable}"] if untestable else failed)
+    if result.verdict == "not_testable":
+        return f"NOT TESTABLE: no matched pair disagrees, but this comparison cannot pass: {untestable}."
     if not result.verdicts:
         return "PASS (no matched pairs to judge)"
-    if result.passed:
-        return f"PASS: all {len(result.verdicts)} matched pairs agree within their tolerances."
-    return "FAIL: " + "; ".join(f"{name} disagrees" for name in result.failed_pairs)
+    return f"PASS: all {len(result.verdicts)} matched pairs agree within their tolerances."
 
 
 def write_compare_outputs(result: CompareResult, outdir: Path, command: str) -> dict[str, Path]:

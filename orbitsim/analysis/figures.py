@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.metrics import position_error, relative_position_difference
+from orbitsim.analysis.metrics import TESTABLE_LIMIT, position_error, relative_position_difference
 from orbitsim.analysis.plotstyle import (
     REFERENCE_COLOR,
     Palette,
@@ -43,6 +43,8 @@ def run_colors(result: Any) -> dict[str, str]:
 
 def _legend_below(ax: Any, n_entries: int) -> None:
     """Legend under the axes: error curves fill a log plot and leave no empty corner."""
+    if not ax.get_legend_handles_labels()[0]:
+        return  # an empty panel (e.g. no REBOUND fixed-step run): matplotlib would warn on stderr
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=min(3, max(1, n_entries)),
               frameon=False)
 
@@ -124,13 +126,16 @@ def pair_figure(result: Any, path: Path) -> Path | None:
             twin_diff = relative_position_difference(twin.positions, theirs.positions) if twin else None
             allowed = allowed_difference(theirs.step[: diff.size], twin_diff)
             color = colors[verdict.orbitsim_label]
-            verdict_text = "agree" if verdict.agree else "DISAGREE"
+            verdict_text = verdict.label
             t = theirs.time[: diff.size]
             mask = log_time_axis(ax, t) & (t > 0)
             ax.plot(t[mask], positive(diff)[mask], color=color, lw=1.6,
                     label=f"orbitsim {verdict.pair.orbitsim} vs {verdict.pair.rebound.display}: {verdict_text}")
             ax.plot(t[mask], allowed[mask], color=color, lw=1.0, ls=":")
         ax.plot([], [], color="0.3", ls=":", label="tolerance (dotted, in the pair's colour)")
+        # Above this a tolerance no longer tests agreement (metrics.TESTABLE_LIMIT).
+        ax.axhline(TESTABLE_LIMIT, color="0.5", lw=0.8, ls="--",
+                   label=f"{TESTABLE_LIMIT:g}: a tolerance above this line tests nothing")
         ax.set_yscale("log")
         ax.set_xlabel(f"time [{time_unit}]")
         ax.set_ylabel("relative position difference\n(exact agreement drawn at 1e-17)")

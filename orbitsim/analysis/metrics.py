@@ -8,6 +8,17 @@ the largest body displacement divided by the largest distance of any body from t
 reference state at the same sample. A per-body relative error would blow up for a body sitting
 near the origin (the Sun in a heliocentric or barycentric frame); scaling by the system's extent
 keeps one number meaningful for a whole planetary system or cluster.
+
+A matched pair's verdict is one of (:func:`pair_verdict`):
+
+* ``agree``: within its tolerance everywhere, the tolerance below :data:`TESTABLE_LIMIT` of the
+  system's size, and a trustworthy reference: the only pass;
+* ``disagree``: beyond its tolerance somewhere (or the runs ended differently);
+* ``chaotic``: within tolerance, but round-off amplification (the twin run) raised the tolerance
+  above :data:`TESTABLE_LIMIT`, where agreement no longer tests the scheme;
+* ``not_testable``: the same, with the nominal term grown past the limit (> 10^8 steps);
+* ``reference_unreliable``: within tolerance, but the IAS15 reference fails
+  :func:`reference_problem`, a sign of an encounter no run here resolves.
 """
 
 from __future__ import annotations
@@ -23,6 +34,33 @@ from orbitsim.reference.pairs import MatchedPair, allowed_difference, nominal_to
 #: A twin divergence above this means the scenario amplifies round-off so much (chaos, close
 #: encounters) that agreement to round-off cannot be expected; verdicts then say so.
 CHAOTIC_TWIN = 1e-6
+
+#: The largest allowed difference, as a fraction of the system's size, at which a pair's agreement
+#: still tests anything. The size is the metric's own scale (the largest distance of a body from
+#: the frame's origin in the REBOUND run at that sample), so the limit reads directly against the
+#: "allowed there" of a verdict. Above it a tolerance accepts runs that differ visibly on a plot of
+#: the system (a line is ~1e-3 of a figure's width) and schemes of different order (verlet against
+#: REBOUND's order-4 leapfrog differs by 4.1e-5 after 200 steps of two_body_circular, 3.4e-3 after
+#: 10^4): it no longer tells the same scheme from a different one.
+TESTABLE_LIMIT = 1e-3
+
+#: A reference whose own max |dE/E| exceeds this is not trusted. IAS15 at epsilon 1e-9 holds the
+#: energy to round-off on orbits it resolves: measured <= 4.3e-15 on the bundled scenarios and
+#: 2.9e-11 on pythagorean, through encounters at 1e-4 separations; Brouwer's law (~1e-16
+#: sqrt(steps)) keeps even 10^10 steps near 1e-11. Five decades above that, |dE/E| reaches 1e-6 only
+#: when IAS15 steps across an encounter it cannot resolve (two bodies falling onto each other
+#: without softening: 1e40), and then its positions after that encounter are meaningless.
+REFERENCE_ENERGY_LIMIT = 1e-6
+
+#: Verdict kinds of a matched pair; only AGREE is a pass.
+AGREE, DISAGREE, CHAOTIC, LOOSE, NO_REFERENCE = "agree", "disagree", "chaotic", "not_testable", "reference_unreliable"
+#: What reports print for each kind.
+VERDICT_LABELS = {
+    AGREE: "agree", DISAGREE: "DISAGREE", CHAOTIC: "chaotic: agreement not testable",
+    LOOSE: "not testable: tolerance too loose", NO_REFERENCE: "not testable: reference unreliable",
+}
+#: The short tag that starts a verdict's terminal line.
+VERDICT_TAGS = {AGREE: "agree", DISAGREE: "DISAGREE", CHAOTIC: "CHAOTIC", LOOSE: "UNTESTED", NO_REFERENCE: "UNTESTED"}
 
 
 def max_abs_energy_error(record: RunRecord) -> float:
@@ -114,14 +152,33 @@ def run_metrics(record: RunRecord, reference: RunRecord | None) -> RunMetrics:
     )
 
 
+def reference_problem(reference: RunRecord) -> str:
+    """Why the IAS15 reference cannot be trusted, or ``""`` when it can.
+
+    It cannot when it stopped early or when its own max |dE/E| exceeds
+    :data:`REFERENCE_ENERGY_LIMIT` (or is not finite).
+    """
+    if reference.status != "complete":
+        return f"the IAS15 reference did not complete ({reference.status}: {reference.message})"
+    err = max_abs_energy_error(reference)
+    if not err <= REFERENCE_ENERGY_LIMIT:  # also catches nan
+        return (f"the IAS15 reference's own max |dE/E| is {err:.2e} (> {REFERENCE_ENERGY_LIMIT:g}): "
+                "an encounter or collision it does not resolve")
+    return ""
+
+
 @dataclass(frozen=True)
 class PairVerdict:
-    """How closely a matched pair agreed, and whether that is within its tolerance.
+    """How closely a matched pair agreed, and whether that agreement is a pass.
 
     ``tolerance`` is the allowed difference at the sample where difference / allowed was
     largest (``worst_ratio``); ``allowed_at_max`` the allowed difference at the sample of the
-    largest difference; ``nominal_tolerance`` the allowed value at the last step without the twin
-    term; ``twin_max`` the largest twin divergence (nan without a twin run).
+    largest difference, ``twin_limited`` whether the twin term set it; ``max_allowed`` the largest
+    allowed difference over the run; ``nominal_tolerance`` the allowed value at the last step
+    without the twin term; ``twin_max`` the largest twin divergence (nan without a twin run);
+    ``within_tolerance`` whether every shared sample was within its allowed difference;
+    ``untestable_from`` the time from which the allowed difference exceeded
+    :data:`TESTABLE_LIMIT` (nan if never); ``verdict`` one of the kinds above.
     """
 
     pair: MatchedPair
@@ -131,10 +188,14 @@ class PairVerdict:
     time_of_max: float
     tolerance: float
     allowed_at_max: float
+    twin_limited: bool
+    max_allowed: float
     nominal_tolerance: float
     twin_max: float
     worst_ratio: float
-    agree: bool
+    within_tolerance: bool
+    untestable_from: float
+    verdict: str
     note: str
 
     @property
@@ -142,27 +203,91 @@ class PairVerdict:
         """The pair's name, as verdict messages print it."""
         return self.pair.name
 
+    @property
+    def agree(self) -> bool:
+        """True only for a pass: within tolerance, and a tolerance that tests something."""
+        return self.verdict == AGREE
+
+    @property
+    def label(self) -> str:
+        """The verdict as reports print it, e.g. ``chaotic: agreement not testable``."""
+        return VERDICT_LABELS[self.verdict]
+
+    def tolerance_source(self) -> str:
+        """What set the allowed difference at the largest difference: the nominal term or the twin."""
+        return "round-off amplification (twin divergence)" if self.twin_limited else "nominal (n^1.5)"
+
+    def terminal_line(self) -> str:
+        """One line for the terminal: tag, pair, difference, what it was allowed and why."""
+        source = (f", set by round-off amplification: a REBOUND twin from a 4-ulp perturbation diverged by up to "
+                  f"{self.twin_max:.2e}" if self.twin_limited else "")
+        line = (f"{VERDICT_TAGS[self.verdict]:<8} {self.name}: max difference {self.max_difference:.2e} "
+                f"(allowed there {self.allowed_at_max:.2e}{source}; worst difference/allowed {self.worst_ratio:.2g})")
+        return line if self.verdict in (AGREE, DISAGREE) else f"{line}: {self.short_reason()}"
+
+    def short_reason(self) -> str:
+        """Why a pair within tolerance is not a pass, in a clause (empty for AGREE and DISAGREE)."""
+        where = f"{TESTABLE_LIMIT:g} of the system's size from t = {self.untestable_from:.6g} on"
+        return {CHAOTIC: f"{self.label} (round-off amplification raises the allowed difference above {where})",
+                LOOSE: f"{self.label} (the nominal tolerance grows above {where})",
+                NO_REFERENCE: self.label}.get(self.verdict, "")
+
+
+def _twin_series(twin: RunRecord | None, theirs: RunRecord, n: int) -> np.ndarray | None:
+    """The twin's divergence from ``theirs`` at the first ``n`` samples; a twin that stopped where
+    ``theirs`` went on diverged without bound there (inf)."""
+    if twin is None:
+        return None
+    series = position_error(twin, theirs)
+    if series.size < n:
+        series = np.concatenate([series, np.full(n - series.size, np.inf)])
+    return series
+
+
+def _classify(within: bool, ref_problem: str, loose: np.ndarray, twin_raised: np.ndarray) -> str:
+    """The verdict kind: a disagreement first, then why an agreement tests nothing, else AGREE."""
+    if not within:
+        return DISAGREE
+    if ref_problem:
+        return NO_REFERENCE
+    if loose.size:
+        return CHAOTIC if twin_raised[loose[0]] else LOOSE
+    return AGREE
+
+
+def _untestable_note(kind: str, time: float, twin_max: float, ref_problem: str) -> str:
+    if kind == NO_REFERENCE:
+        return ref_problem
+    why = (f"round-off amplification: a REBOUND twin from a 4-ulp perturbation diverged by {twin_max:.1e}"
+           if kind == CHAOTIC else "the nominal tolerance's n^1.5 growth over this many steps")
+    return (f"from t = {time:.6g} on the allowed difference exceeds {TESTABLE_LIMIT:g} of the system's size "
+            f"({why}), so agreement there no longer tells the same scheme from a different one")
+
 
 def pair_verdict(pair: MatchedPair, ours: RunRecord, theirs: RunRecord,
-                 twin: RunRecord | None) -> PairVerdict:
-    """Judge a matched pair: every shared sample must be within :func:`allowed_difference`.
+                 twin: RunRecord | None, *, ref_problem: str = "") -> PairVerdict:
+    """Judge a matched pair: every shared sample must be within :func:`allowed_difference`, and
+    for a pass that allowed difference must stay below :data:`TESTABLE_LIMIT` and the reference
+    must be trustworthy (``ref_problem``, from :func:`reference_problem`, empty).
 
     Runs that stop at different samples (one diverged, the other not) disagree outright.
     """
     diff = position_error(ours, theirs)
-    twin_series = position_error(twin, theirs) if twin is not None else None
-    allowed = allowed_difference(theirs.step[: diff.size], twin_series)
+    steps = theirs.step[: diff.size]
+    twin_series = _twin_series(twin, theirs, diff.size)
+    allowed = allowed_difference(steps, twin_series)
+    twin_raised = allowed > nominal_tolerance(steps)  # the twin term set the allowed value there
     nominal = float(nominal_tolerance(int(theirs.step[-1]) if theirs.n_samples else 0))
     note = ""
     if diff.size == 0:
-        ratio, worst, agree, note = math.nan, 0, False, "no shared samples"
+        ratio, worst, within, note = math.nan, 0, False, "no shared samples"
     else:
         ratios = np.where(np.isfinite(diff), diff / allowed, np.inf)
         worst = int(np.argmax(ratios))
         ratio = float(ratios[worst])
-        agree = bool(ratio <= 1.0)
+        within = bool(ratio <= 1.0)
     if ours.n_samples != theirs.n_samples or ours.status != theirs.status:
-        agree = False
+        within = False
         note = (f"runs ended differently: orbitsim {ours.status} after {ours.n_samples} samples, "
                 f"REBOUND {theirs.status} after {theirs.n_samples}")
     elif ours.status != "complete":
@@ -170,7 +295,12 @@ def pair_verdict(pair: MatchedPair, ours: RunRecord, theirs: RunRecord,
         note = f"both runs stopped after {ours.n_samples} samples ({ours.status}): {ours.message}"
     k_max = int(np.nanargmax(diff)) if diff.size and np.any(np.isfinite(diff)) else 0
     twin_max = float(np.nanmax(twin_series)) if twin_series is not None and twin_series.size else math.nan
-    if twin_max > CHAOTIC_TWIN and not note:
+    loose = np.flatnonzero(allowed > TESTABLE_LIMIT)
+    untestable_from = float(theirs.time[loose[0]]) if loose.size else math.nan
+    kind = _classify(within, ref_problem, loose, twin_raised)
+    if kind not in (AGREE, DISAGREE):
+        note = "; ".join(filter(None, [_untestable_note(kind, untestable_from, twin_max, ref_problem), note]))
+    elif twin_max > CHAOTIC_TWIN and not note:
         note = (f"round-off is amplified here: REBOUND rerun from a 4-ulp perturbation diverged by "
                 f"{twin_max:.1e}, so the tolerance follows that")
     return PairVerdict(
@@ -178,6 +308,9 @@ def pair_verdict(pair: MatchedPair, ours: RunRecord, theirs: RunRecord,
         max_difference=float(np.nanmax(diff)) if diff.size else math.nan,
         time_of_max=float(theirs.time[k_max]) if diff.size else math.nan,
         tolerance=float(allowed[worst]) if diff.size else nominal,
-        allowed_at_max=float(allowed[k_max]) if diff.size else nominal, nominal_tolerance=nominal,
-        twin_max=twin_max, worst_ratio=ratio, agree=agree, note=note,
+        allowed_at_max=float(allowed[k_max]) if diff.size else nominal,
+        twin_limited=bool(twin_raised[k_max]) if diff.size else False,
+        max_allowed=float(np.max(allowed)) if diff.size else nominal, nominal_tolerance=nominal,
+        twin_max=twin_max, worst_ratio=ratio, within_tolerance=within, untestable_from=untestable_from,
+        verdict=kind, note=note,
     )

@@ -162,8 +162,12 @@ th,td{border:1px solid #d0d0d0;padding:.3em .6em;text-align:left;vertical-align:
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 figure{margin:1.2em 0}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{font-size:.9em;color:#555;margin-top:.3em}code{background:#f5f5f5;padding:0 .25em}
-.pass{color:#0a7d32;font-weight:600}.fail{color:#b00020;font-weight:600}
+.pass{color:#0a7d32;font-weight:600}.fail{color:#b00020;font-weight:600}.warn{color:#a35200;font-weight:600}
 """
+
+
+#: Lead lines that start with a verdict are coloured by it; an untestable one is not green.
+_LEAD_CLASSES = (("FAIL", "fail"), ("PASS", "pass"), ("NOT TESTABLE", "warn"))
 
 
 def _inline(text: str) -> str:
@@ -185,7 +189,7 @@ def to_html(report: Report) -> str:
            f"<title>{html.escape(report.title)}</title><style>{_CSS}</style></head><body>",
            f"<h1>{html.escape(report.title)}</h1>"]
     for line in report.lead:
-        cls = ' class="fail"' if line.startswith("FAIL") else ' class="pass"' if line.startswith("PASS") else ""
+        cls = next((f' class="{c}"' for prefix, c in _LEAD_CLASSES if line.startswith(prefix)), "")
         out.append(f"<p{cls}>{_inline(line)}</p>")
     for section in report.sections:
         out.append(f"<h2>{html.escape(section.title)}</h2>")

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from orbitsim.cli.errors import EXIT_FAILURE, fail, reports_errors, warn
+from orbitsim.cli.errors import EXIT_FAILURE, EXIT_NOT_TESTABLE, fail, reports_errors, warn
 from orbitsim.cli.options import FINITE_POSITIVE, quiet_option, scenario_argument, threads_option
 
 #: From this many bodies on, a note warns that the IAS15 reference will be slow.
@@ -107,7 +107,20 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
     of order 2/4/6/8; wisdom_holman and WHFast) must agree within a tolerance of 1e-9 at 1e4 steps,
     growing as n^1.5 and with the scenario's own round-off amplification (docs/compare.md).
 
-    Exit status: 0 when every matched pair agrees, 1 when one does not (it is named), 2 for bad input.
+    A pair agrees only if its tolerance still tests something: where round-off amplification (chaos,
+    close encounters, measured by a REBOUND twin run) raises the allowed difference above 1e-3 of the
+    system's size (the largest distance of a body from the origin), the verdict is "chaotic:
+    agreement not testable". A reference whose own max |dE/E| exceeds 1e-6 is flagged as
+    unreliable (an encounter IAS15 does not resolve), and no pair passes against it.
+
+    \b
+    Exit status:
+      0  every matched pair agrees (testably, against a reliable reference)
+      1  a matched pair disagrees (it is named)
+      2  bad input
+      4  an output file could not be written
+      5  no pair disagrees, but the comparison is not testable: a pair is chaotic or the
+         reference is unreliable (named on the error line; see summary.json "verdict")
 
     \b
     Examples:
@@ -136,11 +149,21 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
              "step and will dominate the run time (plummer_1k: ~0.2 s per IAS15 step)")
     result = run_compare(sc, integrators=names, rebound=schemes, extra_pairs=extra, threads=threads, progress=say)
     paths = write_compare_outputs(result, outdir, command_line(ctx))
+    if result.reference_problem:
+        say(f"  WARNING  reference unreliable: {result.reference_problem}")
     for v in result.verdicts:
-        say(f"  {'agree   ' if v.agree else 'DISAGREE'} {v.name}: max difference {v.max_difference:.2e} "
-            f"(allowed there {v.allowed_at_max:.2e}; worst difference/allowed {v.worst_ratio:.2g})")
+        say(f"  {v.terminal_line()}")
     for note in result.notes:
         say(f"  note: {note}")
     say(f"report: {paths['html']}")
-    if not result.passed:
-        fail("matched pair(s) disagree: " + "; ".join(result.failed_pairs), EXIT_FAILURE)
+    exit_on_verdict(result)
+
+
+def exit_on_verdict(result: Any) -> None:
+    """End with one error line and exit 1 (a pair disagrees) or 5 (nothing disagrees, but not a pass)."""
+    untestable = "; ".join(result.untestable_reasons())
+    if result.failed_pairs:
+        more = f"; also not testable: {untestable}" if untestable else ""
+        fail("matched pair(s) disagree: " + "; ".join(result.failed_pairs) + more, EXIT_FAILURE)
+    if result.verdict == "not_testable":
+        fail(f"agreement not testable: {untestable}", EXIT_NOT_TESTABLE)

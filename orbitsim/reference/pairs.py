@@ -27,7 +27,9 @@ Tolerance on the maximum relative position difference over the run (the metric o
   hence the margin of 100.
 
 A pair whose difference exceeds ``allowed_k`` at any sample disagrees: ``orbitsim compare`` exits 1
-and names it.
+and names it. A pair within ``allowed_k`` is a pass only while ``allowed_k`` stays below
+``orbitsim.analysis.metrics.TESTABLE_LIMIT`` (1e-3 of the system's size) and the IAS15 reference
+is reliable; otherwise its verdict says why it is not testable and ``compare`` exits 5.
 """
 
 from __future__ import annotations
