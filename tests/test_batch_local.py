@@ -5,9 +5,11 @@ One two-worker cluster serves the whole module (starting one costs a few seconds
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import os
+import resource
 import shutil
 import signal
 import subprocess
@@ -22,7 +24,7 @@ import pytest
 from click.testing import CliRunner
 
 from orbitsim.batch.cluster import ClusterPlan, open_client
-from orbitsim.batch.driver import run_sweep, trace_path_for
+from orbitsim.batch.driver import SweepInterrupted, run_sweep, trace_path_for
 from orbitsim.batch.sweep import load_sweep
 from orbitsim.cli.main import cli
 from orbitsim.io.trace import read_trace
@@ -87,6 +89,71 @@ def test_failed_and_diverged_runs_are_recorded_and_the_others_complete(client, t
     assert read_trace(out / rows[2]["trace"]).attrs["status"] == "diverged"
     with h5py.File(out / "summary.h5") as f:
         assert list(f["status"].asstr()[()]) == status
+
+
+def _limit_file_size(limit: int) -> None:
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+
+
+def test_a_run_whose_disk_write_fails_is_a_failed_row_with_the_reason(client, tmp_path):
+    # A real I/O error in the middle of a run, on the workers: a file-size limit makes a write fail
+    # with EFBIG ("File too large") as a full disk fails one with ENOSPC. It used to crash workers.
+    sweep = load_sweep(write_sweep(tmp_path, """
+        base: two_body_circular
+        overrides: {steps: 2000, output.every: 100}
+        cases:
+          - {dt: 0.01}
+          - {dt: 0.02, steps: 200000, output.every: 1}   # ~20 MB of samples
+          - {dt: 0.03}
+    """))
+    out = tmp_path / "out"
+    hard = client.run(lambda: resource.getrlimit(resource.RLIMIT_FSIZE)[1])
+    client.run(_limit_file_size, 1_000_000)
+    try:
+        outcome = run_sweep(sweep, out, client=client)
+    finally:
+        client.run(_limit_file_size, min(hard.values()))
+    assert [row["status"] for row in outcome.rows] == ["complete", "failed", "complete"]
+    error = outcome.rows[1]["error"]
+    # The reason first: the terminal table shows an error's first 40 characters.
+    assert error.startswith("File too large") and "\n" not in error and outcome.rows[1]["trace"] == ""
+    rows = read_csv(out / "summary.csv")
+    assert [r["status"] for r in rows] == ["complete", "failed", "complete"] and rows[1]["error"] == error
+    assert not list((out / "runs").glob("*.tmp"))
+    result = CliRunner().invoke(cli, ["batch", str(tmp_path / "sweep.yaml"), "-o", str(out), "--workers", "1"])
+    assert result.exit_code == 0, result.output  # the failed run is rerun, and completes without the limit
+
+
+def test_skip_invalid_runs_the_valid_cases_and_lists_the_invalid_ones(tmp_path):
+    path = write_sweep(tmp_path, """
+        base: two_body_circular
+        overrides: {steps: 200}
+        grid:
+          integrator: [verlet, rk4]
+          dt: [0.01, -1.0]
+    """)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["batch", str(path), "-o", str(out), "--workers", "1", "--no-progress"])
+    assert result.exit_code == 2 and not out.exists()  # the default: the sweep is refused
+    command = ["batch", str(path), "-o", str(out), "--workers", "1", "--no-progress", "--skip-invalid"]
+    result = CliRunner().invoke(cli, command)
+    assert result.exit_code == 1, result.output
+    reason = "grid.dt[1]: must be > 0, got -1.0 (line 6)"
+    assert result.stderr.splitlines()[-1] == (
+        f"orbitsim: error: 2 invalid case(s) skipped (cases 1, 3: {reason}); the errors are in the summary")
+    assert "4 runs: 2 complete, 2 invalid; 0 reused" in result.stdout
+    table = result.stdout.splitlines()
+    assert [line.split()[0] for line in table[1:5]] == ["0", "1", "2", "3"]
+    assert "invalid" in table[2] and "grid.dt[1]: must be > 0" in table[2]
+    rows = read_csv(out / "summary.csv")
+    assert [r["status"] for r in rows] == ["complete", "invalid", "complete", "invalid"]
+    assert [(r["run_id"], r["trace"], r["error"]) for r in rows[1::2]] == [("", "", reason)] * 2
+    assert [(r["integrator"], r["dt"]) for r in rows[1::2]] == [("verlet", "-1.0"), ("rk4", "-1.0")]
+    with h5py.File(out / "summary.h5") as f:
+        assert list(f["status"].asstr()[()]) == ["complete", "invalid", "complete", "invalid"]
+        assert list(f["run_id"].asstr()[()])[1::2] == ["", ""] and list(f["params/dt"][()]) == [0.01, -1.0] * 2
+    again = CliRunner().invoke(cli, command)
+    assert again.exit_code == 1 and "4 runs: 2 complete, 2 invalid; 2 reused" in again.stdout
 
 
 def test_resume_skips_complete_matching_traces_and_reruns_the_rest(client, tmp_path):
@@ -156,26 +223,61 @@ def wait_for(predicate, timeout: float, what: str) -> None:
         time.sleep(0.1)
 
 
-def test_interrupted_sweep_finishes_when_the_command_is_run_again(tmp_path):
-    # Runs of ~0.3 s (quiet machine) to ~1.5 s (busy), so that Ctrl-C lands while some are done and
-    # others are not.
-    path = grid_sweep(tmp_path, 8, steps=3_000_000, every=1000)
+def process_group_alive(pgid: int) -> bool:
+    """Whether a process of the group is still running (zombies waiting for a reaper do not count)."""
+    if not Path("/proc/self/stat").is_file():
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, IndexError, ValueError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()  # state, ppid, pgrp, ...
+            if int(fields[2]) == pgid and fields[0] != "Z":
+                return True
+    return False
+
+
+@pytest.mark.parametrize("presses", [1, 2])
+def test_ctrl_c_is_one_line_exit_130_and_a_summary_of_what_really_finished(tmp_path, presses):
+    # Ctrl-C in a terminal sends SIGINT to the whole foreground process group: the driver and the
+    # local cluster's workers alike. Eight equal runs of ~0.5 s (quiet machine) to a few seconds
+    # (busy) on two workers: when the first trace appears the second run is usually finishing too
+    # and the next is in flight, so some runs end while the cluster shuts down (they used to be
+    # listed as `not run`); the rest are queued and cancelled.
+    path = grid_sweep(tmp_path, 8, steps=10_000_000, every=1000)
     out = tmp_path / "out"
     command = [ORBITSIM, "batch", str(path), "-o", str(out), "--workers", "2", "--no-progress"]
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
     try:
-        wait_for(lambda: len(list((out / "runs").glob("*.h5"))) >= 1, 120, "the first finished run")
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
+        wait_for(lambda: any((out / "runs").glob("*.h5")), 300, "the first finished run")
+        os.killpg(proc.pid, signal.SIGINT)
+        if presses == 2:
+            time.sleep(0.2)  # while it cancels, closes the cluster and writes the summary
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+        wait_for(lambda: not process_group_alive(proc.pid), 30, "the workers to exit")
     finally:
+        if process_group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
         if proc.poll() is None:
-            proc.kill()
             proc.wait()
+    lines = err.splitlines()
     assert proc.returncode == 130, err
-    assert "run the same command again" in err
+    assert len(lines) == 2 and lines[0].startswith("running 8 run(s) on local Dask cluster"), err
+    assert lines[1].startswith("orbitsim: error: interrupted; ") and "run the same command again" in lines[1]
+    # What the summary says finished is exactly what is on disk, runs completed during the shutdown included.
+    rows = read_csv(out / "summary.csv")
     done = {p.stem for p in (out / "runs").glob("*.h5")}
-    partial = read_csv(out / "summary.csv")
-    assert "not run" in {r["status"] for r in partial} and len(done) < 8
+    assert {r["run_id"] for r in rows if r["status"] == "complete"} == done
+    assert all(r["status"] == "not run" and r["trace"] == "" for r in rows if r["run_id"] not in done)
+    assert 1 <= len(done) < 8  # the queued runs were cancelled
+    assert f"{len(done)} of 8 run(s) finished, {8 - len(done)} not run" in lines[1]
+    with h5py.File(out / "summary.h5") as f:
+        assert list(f["status"].asstr()[()]) == [r["status"] for r in rows] and f.attrs["interrupted"]
     rerun = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert rerun.returncode == 0, rerun.stderr
     rows = read_csv(out / "summary.csv")
@@ -183,6 +285,38 @@ def test_interrupted_sweep_finishes_when_the_command_is_run_again(tmp_path):
     assert {r["run_id"] for r in rows if r["resumed"] == "true"} == done
     assert f"{len(done)} reused from earlier traces" in rerun.stdout
     assert not list((out / "runs").glob("*.tmp"))
+
+
+def test_an_interrupted_no_resume_sweep_does_not_report_old_traces_as_its_own(client, tmp_path):
+    sweep = load_sweep(grid_sweep(tmp_path, 6, steps=3_000_000, every=1000))
+    out = tmp_path / "out"
+    assert run_sweep(sweep, out, client=client).counts["complete"] == 6
+    old = {row["run_id"]: (out / row["trace"]).stat().st_ino for row in read_csv(out / "summary.csv")}
+
+    def stop(finished, total, row):  # Ctrl-C as the first result comes back
+        raise KeyboardInterrupt
+
+    with pytest.raises(SweepInterrupted) as info:
+        run_sweep(sweep, out, workers=2, resume=False, progress=stop)
+    rows = info.value.outcome.rows
+    assert len(rows) == 6
+    redone = {rid for rid, ino in old.items() if (out / "runs" / f"{rid}.h5").stat().st_ino != ino}
+    assert {r["run_id"] for r in rows if r["status"] == "complete"} == redone  # rewritten by this sweep
+    assert 1 <= len(redone) < 6 and all(r["status"] == "not run" for r in rows if r["run_id"] not in redone)
+    assert [r["status"] for r in read_csv(out / "summary.csv")] == [r["status"] for r in rows]
+
+
+def test_workers_ignore_ctrl_c_even_after_a_restart(client):
+    # The driver alone answers Ctrl-C; a worker that took it would die with a traceback.
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the driver's is back
+    assert set(client.run(signal.getsignal, signal.SIGINT).values()) == {signal.SIG_IGN}
+    pids = client.run(os.getpid)
+    victim = next(iter(pids))
+    os.kill(pids[victim], signal.SIGKILL)  # its nanny starts a new worker process
+    wait_for(lambda: victim not in client.scheduler_info()["workers"] and len(client.scheduler_info()["workers"]) == 2,
+             120, "the killed worker to be replaced")
+    client.wait_for_workers(2, timeout=120)
+    assert set(client.run(signal.getsignal, signal.SIGINT).values()) == {signal.SIG_IGN}
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="Linux only")

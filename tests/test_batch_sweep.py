@@ -142,3 +142,36 @@ def test_invalid_sweeps_fail_with_one_line_naming_the_key(tmp_path, text, expect
 def test_missing_sweep_file_is_a_sweep_error(tmp_path):
     with pytest.raises(SweepError, match="cannot read sweep file"):
         load_sweep(tmp_path / "nope.yaml")
+
+
+def test_skip_invalid_keeps_each_invalid_case_aside_with_its_error_and_line(tmp_path):
+    text = """
+        base: two_body_circular
+        overrides: {steps: 10}
+        grid:
+          integrator: [verlet, kdk, rk4]
+          dt: [0.01, -0.5]
+    """
+    with pytest.raises(SweepError, match=r"grid\.dt\[1\]"):  # the default is unchanged: the sweep is refused
+        load_sweep(write(tmp_path, text))
+    sweep = load_sweep(write(tmp_path, text), skip_invalid=True)
+    # Cases 1, 3 and 5 have dt = -0.5; case 2 (kdk, an alias of verlet) repeats case 0's scenario.
+    assert [c.index for c in sweep.cases] == [0, 4]
+    assert [c.index for c in sweep.invalid] == [1, 2, 3, 5]
+    assert sweep.params == ("integrator", "dt")
+    bad = sweep.invalid[0]
+    assert bad.params == {"integrator": "verlet", "dt": -0.5} and bad.where["dt"] == "grid.dt[1]"
+    assert bad.message == "grid.dt[1]: must be > 0, got -0.5 (line 6)"
+    assert sweep.invalid[1].message.startswith("case 2 (grid.integrator[1], grid.dt[0]): resolves to the same "
+                                               "scenario as case 0")
+    assert all("\n" not in c.message and str(tmp_path) not in c.message for c in sweep.invalid)
+
+
+def test_skip_invalid_still_refuses_a_sweep_with_no_valid_case(tmp_path):
+    path = write(tmp_path, """
+        base: two_body_circular
+        grid: {dt: [-1.0, -2.0]}
+    """)
+    with pytest.raises(SweepError) as info:
+        load_sweep(path, skip_invalid=True)
+    assert str(info.value) == f"{path}: grid.dt[0]: must be > 0, got -1.0 (line 3)"

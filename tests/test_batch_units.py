@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import csv
 import math
+import os
+import signal
+import time
 
 import h5py
 import numpy as np
 import pytest
 
 from orbitsim.batch.cluster import plan_local
+from orbitsim.batch.driver import interrupt_once
 from orbitsim.batch.overrides import OverrideError, apply_override, path_components, paths_overlap
 from orbitsim.batch.summary import column_names, format_table, write_csv, write_h5
 
@@ -122,5 +126,65 @@ def test_batch_help_documents_the_options():
 
     result = CliRunner().invoke(cli, ["batch", "--help"])
     assert result.exit_code == 0
-    for option in ("--outdir", "--scheduler", "--workers", "--threads", "--resume"):
+    for option in ("--outdir", "--scheduler", "--workers", "--threads", "--resume", "--skip-invalid"):
         assert option in result.output
+
+
+@pytest.mark.skipif(signal.getsignal(signal.SIGINT) is not signal.default_int_handler,
+                    reason="needs Python's own SIGINT handler")
+def test_interrupt_once_raises_on_the_first_ctrl_c_and_ignores_the_next_until_the_end():
+    interrupts = 0
+    with interrupt_once():
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(30)  # cut short by the KeyboardInterrupt
+        except KeyboardInterrupt:
+            interrupts += 1
+        os.kill(os.getpid(), signal.SIGINT)  # a second Ctrl-C while the sweep shuts down: ignored
+        time.sleep(0.05)
+    assert interrupts == 1
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+class _WriteFailureError(OSError):
+    """Shaped like orbitsim.io.schema's: ``str()`` is the whole message, ``strerror`` too."""
+
+    def __init__(self, code: int, message: str, filename: str) -> None:
+        super().__init__(code, message, filename)
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
+def test_a_failed_runs_error_is_one_line_with_the_os_reason_first():
+    import errno
+
+    from orbitsim.batch.task import run_error
+
+    trace = "/out/runs/abc.h5"
+    full = _WriteFailureError(errno.ENOSPC, f"{trace}: No space left on device while writing {trace}.tmp;\n"
+                         "the run stopped at step 10 of 20", f"{trace}.tmp")
+    assert run_error(full, trace) == (f"No space left on device while writing {trace}.tmp; "
+                                      "the run stopped at step 10 of 20")
+    assert run_error(OSError(errno.ENOSPC, "No space left on device", f"{trace}.tmp"), trace) == \
+        f"No space left on device ({trace}.tmp)"
+    assert run_error(_WriteFailureError(errno.EFBIG, "cannot write the trace", ""), trace) == \
+        "File too large: cannot write the trace"
+    assert run_error(ValueError("bad\nvalue"), trace) == "ValueError: bad value"
+    assert run_error(OSError("Unable to write (error message = 'x')"), trace) == \
+        "OSError: Unable to write (error message = 'x')"  # no errno: the text as it is
+
+
+def test_run_case_turns_a_full_disk_into_a_failed_row(monkeypatch, tmp_path):
+    import errno
+
+    import orbitsim.runner
+    from orbitsim.batch.task import run_case
+
+    def full_disk(scenario, output, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", f"{output}.tmp")
+
+    monkeypatch.setattr(orbitsim.runner, "run_scenario", full_disk)
+    row = run_case(None, str(tmp_path / "a.h5"))
+    assert row["status"] == "failed" and row["error"] == f"No space left on device ({tmp_path / 'a.h5'}.tmp)"
+    assert row["worker"] and math.isnan(row["max_abs_energy_error"])

@@ -18,7 +18,8 @@ Typical use::
 Importing this package imports neither numba nor dask.
 """
 
-from orbitsim.batch.driver import SweepOutcome, run_sweep
-from orbitsim.batch.sweep import Case, Sweep, SweepError, load_sweep
+from orbitsim.batch.driver import SweepInterrupted, SweepOutcome, run_sweep
+from orbitsim.batch.sweep import Case, InvalidCase, Sweep, SweepError, load_sweep
 
-__all__ = ["Case", "Sweep", "SweepError", "SweepOutcome", "load_sweep", "run_sweep"]
+__all__ = ["Case", "InvalidCase", "Sweep", "SweepError", "SweepInterrupted", "SweepOutcome", "load_sweep",
+           "run_sweep"]

@@ -6,6 +6,12 @@ processes also isolate a crashing run. Each worker gets ``NUMBA_NUM_THREADS`` th
 ``env`` (applied in the worker process before it imports anything), chosen so that
 workers x Numba threads <= cores: oversubscribing the cores would only slow every run down.
 
+The local cluster's processes ignore SIGINT. A terminal's Ctrl-C goes to every process of its
+foreground group, workers included, and a worker that took it died with a traceback of its own
+(68 lines for two workers) and took its run down, while answering Ctrl-C is the driver's job: stop,
+keep what finished, say so in one line (:mod:`orbitsim.batch.driver`). The driver closes the
+workers instead.
+
 For an existing cluster (``--scheduler tcp://HOST:PORT``) the workers' own settings apply; see
 docs/batch.md for how to start ``dask worker`` with a matching ``NUMBA_NUM_THREADS``.
 """
@@ -15,6 +21,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -67,6 +75,39 @@ def plan_local(
     return ClusterPlan(workers=n, threads=threads or max(1, cores // n))
 
 
+def dask_setup(worker: Any = None) -> None:
+    """Worker preload: ignore SIGINT (see the module docstring).
+
+    Workers started with the cluster inherit an ignored SIGINT already (:func:`_sigint_ignored`);
+    this covers a worker the nanny restarts later (after one died), which is spawned while the
+    driver answers Ctrl-C again. Dask calls it on the worker's event-loop thread, the process's
+    main thread, the only one that may set a signal handler.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT in this process while the cluster's processes are spawned.
+
+    A child inherits an ignored SIGINT across ``exec`` (a handler, by contrast, is reset to the
+    default), and CPython installs its KeyboardInterrupt handler only where SIGINT is at its
+    default, so the nannies and workers spawned now ignore Ctrl-C for their whole life (checked
+    in /proc/<pid>/status, SigIgn). The cost: a Ctrl-C during the seconds the cluster takes to
+    start is lost. Blocking SIGINT instead would keep it pending, but the kernel then hands it to
+    another thread (OpenBLAS's), where the ignored disposition drops it all the same.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield  # only the main thread may change handlers; the workers then keep Dask's default
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _local_cluster(plan: ClusterPlan) -> Any:
     from distributed import LocalCluster
 
@@ -80,6 +121,7 @@ def _local_cluster(plan: ClusterPlan) -> Any:
         dashboard_address=":0",
         silence_logs=logging.ERROR,
         env={"NUMBA_NUM_THREADS": str(plan.threads)},
+        preload=[__name__],  # dask_setup: a restarted worker ignores Ctrl-C too
     )
 
 
@@ -104,7 +146,8 @@ def open_client(scheduler: str | None, plan: ClusterPlan | None = None) -> Itera
     cluster = None
     try:
         if scheduler is None:
-            cluster = _local_cluster(plan or plan_local())
+            with _sigint_ignored():
+                cluster = _local_cluster(plan or plan_local())
             client = Client(cluster)
         else:
             client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
@@ -120,6 +163,8 @@ def open_client(scheduler: str | None, plan: ClusterPlan | None = None) -> Itera
             raise ClusterError(f"no Dask worker joined {scheduler} within {WORKER_WAIT_S:.0f} s") from None
         yield client
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            client.close()
+        finally:  # even when a Ctrl-C broke the line above: an open cluster would linger until exit
+            if cluster is not None:
+                cluster.close()

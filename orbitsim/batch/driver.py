@@ -10,22 +10,31 @@ Reliability comes from Dask and from content addressing, not from bookkeeping of
 * A run that fails is a ``failed`` row (see :mod:`orbitsim.batch.task`); the sweep goes on.
 * Rows are placed by case index, never by completion order, and every number in a row is read
   from the trace, so the summary does not depend on how many workers ran it or in which order.
+* Ctrl-C stops the sweep: what is queued is cancelled, the cluster is shut down (a second Ctrl-C
+  does not break that), and only then is the summary written, reading back from disk every case
+  that has no row yet, so a run that completed during the shutdown is ``complete``, not ``not run``.
+* With ``skip_invalid`` a sweep's invalid cases are ``invalid`` rows (no run id, no trace) and the
+  valid ones run.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import signal
+import threading
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from orbitsim.batch.summary import write_csv, write_h5
-from orbitsim.batch.sweep import Case, Sweep
+from orbitsim.batch.sweep import Case, InvalidCase, Sweep
 from orbitsim.batch.task import failed_result, run_case, trace_result, warm_up
 
-__all__ = ["TASK_RETRIES", "SweepOutcome", "completed_result", "run_sweep", "trace_path_for"]
+__all__ = ["TASK_RETRIES", "SweepInterrupted", "SweepOutcome", "completed_result", "interrupt_once", "run_sweep",
+           "trace_path_for"]
 
 #: Extra attempts Dask makes when the task function itself raises (e.g. a worker that cannot
 #: import orbitsim). Run failures never raise (they are returned as rows), and a *killed* worker's
@@ -51,6 +60,41 @@ class SweepOutcome:
     def counts(self) -> Counter[str]:
         """Number of rows per status."""
         return Counter(row["status"] for row in self.rows)
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped the sweep; ``outcome`` is what was written (its rows say what finished)."""
+
+    def __init__(self, outcome: SweepOutcome) -> None:
+        super().__init__("the sweep was interrupted")
+        self.outcome = outcome
+
+
+@contextlib.contextmanager
+def interrupt_once() -> Iterator[None]:
+    """Within the block the first Ctrl-C raises KeyboardInterrupt and later ones are ignored.
+
+    What follows the first Ctrl-C is the sweep's shutdown: cancel, close the cluster, write the
+    summary. A second Ctrl-C used to break it halfway (the cluster left for the interpreter's exit
+    to close, with tracebacks; no summary). The shutdown is bounded by Dask's own timeouts (a worker
+    that does not stop within seconds is killed), so ignoring it costs a few seconds at most.
+    Only in the main thread, and only over Python's default handler: a caller's handler is left
+    alone. The default handler is back when the block ends.
+    """
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+
+    def first(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, first)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def trace_path_for(outdir: Path, case: Case) -> Path:
@@ -84,9 +128,16 @@ def _row(case: Case, outdir: Path, result: dict[str, Any], resumed: bool) -> dic
     row.update(result)
     row["resumed"] = resumed
     row["trace"] = trace_path_for(outdir, case).relative_to(outdir).as_posix()
-    if row["status"] == "failed" and not (outdir / row["trace"]).is_file():
+    if row["status"] in ("failed", "not run") and not (outdir / row["trace"]).is_file():
         row["trace"] = ""
     return row
+
+
+def _invalid_row(case: InvalidCase) -> dict[str, Any]:
+    """An invalid case's row: it has no resolved scenario, hence no run id and no trace."""
+    result = failed_result(case.message)
+    result["status"] = "invalid"
+    return {"case": case.index, "run_id": "", "params": case.params, **result, "resumed": False, "trace": ""}
 
 
 def run_sweep(
@@ -126,11 +177,14 @@ def run_sweep(
     Returns
     -------
     SweepOutcome
-        On Ctrl-C (or a lost cluster) the summary of what finished is written, unfinished runs
-        being ``not run``, and the exception is re-raised.
+        Rows in case order, the sweep's invalid cases (:attr:`Sweep.invalid`) included.
 
     Raises
     ------
+    SweepInterrupted
+        On Ctrl-C, after the cluster is shut down and the summary is written: every run that
+        finished (during the shutdown too) is in it, the others are ``not run``. A lost cluster
+        writes the same summary and its error goes on.
     orbitsim.batch.cluster.ClusterError
         When the cluster cannot be started or reached, or a worker lacks this orbitsim; nothing
         has been written then.
@@ -138,7 +192,7 @@ def run_sweep(
     from orbitsim.batch.cluster import ClusterError
 
     outdir = Path(outdir).resolve()
-    rows: dict[int, dict[str, Any]] = {}
+    rows: dict[int, dict[str, Any]] = {case.index: _invalid_row(case) for case in sweep.invalid}
     pending: list[Case] = []
     earlier = _previous_workers(outdir) if resume else {}
     for case in sweep.cases:
@@ -147,25 +201,51 @@ def run_sweep(
             pending.append(case)
         else:
             rows[case.index] = _row(case, outdir, {**done, "worker": earlier.get(case.run_id, "")}, True)
-    outcome = SweepOutcome(sweep, outdir, [], resumed=len(rows))
-    try:
-        if pending:
-            _run_pending(pending, outdir, rows, client, scheduler, workers, threads, progress, on_start)
-        elif on_start is not None:
-            on_start(0, len(rows), "nothing to run")
-    except ClusterError:
-        raise  # raised before anything was submitted: there is nothing to summarise
-    except BaseException as exc:  # Ctrl-C, or the cluster went away: keep a summary of what finished
-        outcome.interrupted = isinstance(exc, KeyboardInterrupt)
+    outcome = SweepOutcome(sweep, outdir, [], resumed=len(sweep.cases) - len(pending))
+    before = {case.index: _identity(trace_path_for(outdir, case)) for case in pending}
+    with interrupt_once():
+        try:
+            if pending:
+                _run_pending(pending, outdir, rows, client, scheduler, workers, threads, progress, on_start)
+            elif on_start is not None:
+                on_start(0, outcome.resumed, "nothing to run")
+        except ClusterError:
+            raise  # raised before anything was submitted: there is nothing to summarise
+        except BaseException as exc:  # Ctrl-C, or the cluster went away: keep a summary of what finished
+            outcome.interrupted = isinstance(exc, KeyboardInterrupt)
+            _finish(outcome, rows, [c for c in pending if _identity(trace_path_for(outdir, c)) != before[c.index]])
+            if outcome.interrupted:
+                raise SweepInterrupted(outcome) from None
+            raise
         _finish(outcome, rows)
-        raise
-    _finish(outcome, rows)
     return outcome
 
 
-def _finish(outcome: SweepOutcome, rows: dict[int, dict[str, Any]]) -> None:
+def _identity(path: Path) -> tuple[int, int] | None:
+    """Inode and mtime of a file: a trace renamed into place by a run gets a new one."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return stat.st_ino, stat.st_mtime_ns
+
+
+def _finish(outcome: SweepOutcome, rows: dict[int, dict[str, Any]], unsure: list[Case] | None = None) -> None:
+    """Order the rows by case and write the summaries.
+
+    ``unsure`` are the submitted cases whose trace file changed while the sweep ran, when it stopped
+    early: the cluster is shut down by now, so each of those traces is final, and a run that
+    completed after the last result came back (during the shutdown) is read from its trace rather
+    than called ``not run``. (A trace that did not change is an earlier sweep's, which
+    ``--no-resume`` was asked to redo.)
+    """
     outdir = outcome.outdir
-    outcome.rows = [rows.get(c.index) or _row(c, outdir, _not_run(), False) for c in outcome.sweep.cases]
+    for case in unsure or ():
+        done = None if case.index in rows else completed_result(trace_path_for(outdir, case), case)
+        if done is not None:
+            rows[case.index] = _row(case, outdir, {**done, "worker": ""}, False)
+    not_run = {c.index: _row(c, outdir, _not_run(), False) for c in outcome.sweep.cases if c.index not in rows}
+    outcome.rows = [row for _, row in sorted({**rows, **not_run}.items())]
     outdir.mkdir(parents=True, exist_ok=True)
     outcome.files = _write_summaries(outcome)
 

@@ -5,17 +5,19 @@ Columns, in order (``params`` are the sweep's dotted key paths, one column each)
 ========================  =====  ===========================================================
 ``case``                  int    position of the case in the sweep (0-based)
 ``run_id``                str    16 hex digits of the SHA-256 of the fully resolved scenario
+                                 (empty for an invalid case: it has no resolved scenario)
 *params*                  any    the value of each swept key path in this case
-``status``                str    ``complete``, ``diverged``, ``failed`` or ``not run``
+``status``                str    ``complete``, ``diverged``, ``failed``, ``not run`` or ``invalid``
 ``steps_done``            int    steps integrated (0 when the run failed before stepping)
 ``max_abs_energy_error``  float  max over samples of abs(E - E0) / abs(E0)
 ``final_energy_error``    float  (E - E0) / abs(E0) at the last sample
 ``wall_time_s``           float  wall-clock seconds of the run, as recorded in its trace
 ``steps_per_second``      float  ``steps_done / wall_time_s``
-``worker``                str    address of the Dask worker that ran it
+``worker``                str    address of the Dask worker that ran it (empty when unknown: a run
+                                 that finished while an interrupted sweep shut down)
 ``resumed``               bool   true when an existing complete trace was reused
-``trace``                 str    trace path relative to the output directory
-``error``                 str    why a run failed or diverged (empty otherwise)
+``trace``                 str    trace path relative to the output directory (empty when none)
+``error``                 str    why a run failed or diverged, or a case is invalid (empty otherwise)
 ========================  =====  ===========================================================
 
 Missing numbers (a failed run has no energy error) are empty in the CSV and NaN in the HDF5 file.
@@ -77,17 +79,23 @@ def _cell(value: Any) -> str:
 
 def write_csv(path: str | os.PathLike, rows: Sequence[Mapping[str, Any]], params: Sequence[str]) -> Path:
     """Write ``rows`` (dicts with ``case``, ``run_id``, ``params`` and the result columns) as CSV."""
+    from orbitsim.io.h5safe import io_failure
+
     final = Path(path)
     tmp = final.with_name(final.name + ".tmp")
-    with open(tmp, "w", newline="", encoding="utf-8") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(column_names(params))
-        for row in rows:
-            values = [row["case"], row["run_id"]]
-            values += [row["params"].get(p) for p in params]
-            values += [row.get(name) for name, _ in RESULT_COLUMNS]
-            writer.writerow([_cell(v) for v in values])
-    os.replace(tmp, final)
+    try:
+        with open(tmp, "w", newline="", encoding="utf-8") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(column_names(params))
+            for row in rows:
+                values = [row["case"], row["run_id"]]
+                values += [row["params"].get(p) for p in params]
+                values += [row.get(name) for name, _ in RESULT_COLUMNS]
+                writer.writerow([_cell(v) for v in values])
+        os.replace(tmp, final)
+    except OSError as err:
+        tmp.unlink(missing_ok=True)
+        raise io_failure(err, f"{final}: {{reason}} (the previous summary, if any, is unchanged)", tmp) from None
     return final
 
 
@@ -132,10 +140,12 @@ def write_h5(
     """
     import h5py
 
+    from orbitsim.io.h5safe import in_memory, io_failure, write_image
+
     final = Path(path)
     tmp = final.with_name(final.name + ".tmp")
     text = h5py.string_dtype("utf-8")
-    with h5py.File(tmp, "w") as f:
+    with in_memory() as f:  # a small file: built in memory, so that a full disk is one plain write error
         for key, value in (attrs or {}).items():
             f.attrs[key] = value
         f.attrs["columns"] = column_names(params)
@@ -147,7 +157,12 @@ def write_h5(
         for p in params:
             data = _param_array([row["params"].get(p) for row in rows])
             group.create_dataset(p, data=data, dtype=text if data.dtype == object else data.dtype)
-    os.replace(tmp, final)
+        try:
+            write_image(f, tmp)
+            os.replace(tmp, final)
+        except OSError as err:
+            tmp.unlink(missing_ok=True)
+            raise io_failure(err, f"{final}: {{reason}} (the previous summary, if any, is unchanged)", tmp) from None
     return final
 
 

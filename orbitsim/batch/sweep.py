@@ -19,6 +19,9 @@ Keys of ``overrides``, ``grid`` and ``cases`` are dotted key paths into the base
 document (:mod:`orbitsim.batch.overrides`). Every case is validated by the scenario loader itself
 (:func:`orbitsim.scenario.scenario_from_dict`) before anything runs, and an invalid case fails the
 whole sweep with the sweep key that holds the bad value, e.g. ``sweep.yaml: grid.dt[2]: ...``.
+With ``skip_invalid`` such a case (or one that repeats an earlier case's scenario) is kept aside
+as an :class:`InvalidCase` instead, and the others make the sweep; an error of the file itself (its
+layout, its base scenario, every case invalid) still fails it.
 
 Each case's run id is the first :data:`RUN_ID_CHARS` hex digits of the SHA-256 of its fully resolved
 scenario YAML, so it depends on the physics only: not on the case's position, the sweep's name or
@@ -37,7 +40,7 @@ from typing import Any
 
 from orbitsim.batch.overrides import OverrideError, apply_override, path_components, paths_overlap
 
-__all__ = ["RUN_ID_CHARS", "Case", "Sweep", "SweepError", "load_sweep", "sweep_from_dict"]
+__all__ = ["RUN_ID_CHARS", "Case", "InvalidCase", "Sweep", "SweepError", "load_sweep", "sweep_from_dict"]
 
 #: Hex digits of the run id: 64 bits, so a collision within any sweep is never a practical concern.
 RUN_ID_CHARS = 16
@@ -84,26 +87,48 @@ class Case:
 
 
 @dataclass(frozen=True)
+class InvalidCase:
+    """A case that is not a valid scenario, kept aside by ``skip_invalid``; ``error`` says why."""
+
+    index: int
+    params: dict[str, Any]
+    where: dict[str, str]
+    error: SweepError
+
+    @property
+    def message(self) -> str:
+        """The error without the file name: ``grid.dt[2]: must be > 0, got -0.5 (line 5)``."""
+        return str(SweepError("", self.error.key, self.error.message, self.error.line))
+
+
+@dataclass(frozen=True)
 class Sweep:
-    """A validated sweep: its cases in file order and the key paths that vary between them."""
+    """A validated sweep: its cases in file order and the key paths that vary between them.
+
+    ``cases`` are the valid cases; ``invalid`` is empty unless the sweep was loaded with
+    ``skip_invalid``. Together they are every case of the file, each with its own ``index``.
+    """
 
     name: str
     file: str
     text: str
     params: tuple[str, ...]
     cases: tuple[Case, ...]
+    invalid: tuple[InvalidCase, ...] = ()
 
 
-def load_sweep(path: str | Path) -> Sweep:
+def load_sweep(path: str | Path, *, skip_invalid: bool = False) -> Sweep:
     """Read, validate and expand the sweep file at ``path``.
 
     The file is read by the scenario loader's YAML reader, so numbers such as ``1e-3`` mean the
     same in a sweep as in a scenario, duplicate keys are errors, and errors carry line numbers.
+    With ``skip_invalid`` the invalid cases go to :attr:`Sweep.invalid` instead of failing it.
 
     Raises
     ------
     SweepError
-        If the file is unreadable, malformed, or any case is not a valid scenario.
+        If the file is unreadable, malformed, or any case is not a valid scenario (with
+        ``skip_invalid``: if no case is).
     """
     from orbitsim.scenario import ScenarioError
     from orbitsim.scenario.yamlio import parse_yaml
@@ -118,11 +143,18 @@ def load_sweep(path: str | Path) -> Sweep:
     except ScenarioError as err:
         raise SweepError(label, err.key or "", err.reason, err.line) from None
     try:
-        return sweep_from_dict(doc, label, text=text)
+        sweep = sweep_from_dict(doc, label, text=text, skip_invalid=skip_invalid)
     except SweepError as err:
-        if err.line is None and err.file == label:
-            err.line = _line_of(err.key, lines)
+        _locate(err, label, lines)
         raise
+    for case in sweep.invalid:
+        _locate(case.error, label, lines)
+    return sweep
+
+
+def _locate(err: SweepError, label: str, lines: dict[str, int]) -> None:
+    if err.line is None and err.file == label:
+        err.line = _line_of(err.key, lines)
 
 
 def _line_of(key: str, lines: dict[str, int]) -> int | None:
@@ -136,8 +168,12 @@ def _line_of(key: str, lines: dict[str, int]) -> int | None:
     return None
 
 
-def sweep_from_dict(doc: Any, file: str, *, text: str = "") -> Sweep:
-    """Validate and expand a sweep document; ``file`` names it in errors and anchors relative paths."""
+def sweep_from_dict(doc: Any, file: str, *, text: str = "", skip_invalid: bool = False) -> Sweep:
+    """Validate and expand a sweep document; ``file`` names it in errors and anchors relative paths.
+
+    With ``skip_invalid`` a case that is not a valid scenario, or that repeats an earlier case's
+    scenario, becomes an :class:`InvalidCase`; the sweep still fails when no case is valid.
+    """
     if not isinstance(doc, dict):
         raise SweepError(file, "", "a sweep file must be a mapping with `base` and `grid` or `cases`")
     unknown = [k for k in doc if k not in _TOP_KEYS]
@@ -152,14 +188,25 @@ def sweep_from_dict(doc: Any, file: str, *, text: str = "") -> Sweep:
     common = _mapping(doc.get("overrides", {}), file, "overrides")
     choices = list(_grid_cases(doc["grid"], file) if "grid" in doc else _listed_cases(doc["cases"], file))
     params = tuple(dict.fromkeys(p for values, _ in choices for p in values))
-    cases = []
+    cases: list[Case] = []
+    invalid: list[InvalidCase] = []
+    seen: dict[str, Case] = {}  # run id -> the first case with that scenario
     for index, (values, where) in enumerate(choices):
         settings = {**{p: (v, f"overrides.{p}") for p, v in common.items()},
                     **{p: (v, where[p]) for p, v in values.items()}}
-        scenario = _resolve(base, settings, file, index)
-        cases.append(Case(index, values, where, scenario, str(scenario.sha256)))
-    _check_unique(cases, file)
-    return Sweep(name=name, file=file, text=text, params=params, cases=tuple(cases))
+        try:
+            scenario = _resolve(base, settings, file, index)
+            case = Case(index, values, where, scenario, str(scenario.sha256))
+            _check_unique(case, seen, file)
+        except SweepError as err:
+            if not skip_invalid:
+                raise
+            invalid.append(InvalidCase(index, values, where, err))
+            continue
+        cases.append(seen.setdefault(case.run_id, case))
+    if not cases:  # only with skip_invalid: a sweep with nothing to run is an invalid sweep
+        raise invalid[0].error
+    return Sweep(name=name, file=file, text=text, params=params, cases=tuple(cases), invalid=tuple(invalid))
 
 
 def _mapping(value: Any, file: str, key: str) -> dict[str, Any]:
@@ -270,14 +317,12 @@ def _case_location(settings: dict[str, tuple[Any, str]], index: int) -> str:
     return f"case {index} ({', '.join(located)})" if located else f"case {index}"
 
 
-def _check_unique(cases: list[Case], file: str) -> None:
+def _check_unique(case: Case, seen: dict[str, Case], file: str) -> None:
     """Two cases with one resolved scenario would race for one trace file: refuse up front."""
-    seen: dict[str, Case] = {}
-    for case in cases:
-        other = seen.setdefault(case.run_id, case)
-        if other is not case:
-            raise SweepError(
-                file, _case_location({p: (None, w) for p, w in case.where.items()}, case.index),
-                f"resolves to the same scenario as case {other.index} (run id {case.run_id}); "
-                "remove one of them",
-            )
+    other = seen.get(case.run_id)
+    if other is not None:
+        raise SweepError(
+            file, _case_location({p: (None, w) for p, w in case.where.items()}, case.index),
+            f"resolves to the same scenario as case {other.index} (run id {case.run_id}); "
+            "remove one of them",
+        )

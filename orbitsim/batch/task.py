@@ -13,12 +13,13 @@ run reused by ``--resume`` alike, so both give the same bits.
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import socket
 from typing import Any
 
-__all__ = ["failed_result", "run_case", "trace_result", "warm_up", "worker_label"]
+__all__ = ["failed_result", "run_case", "run_error", "trace_result", "warm_up", "worker_label"]
 
 
 def worker_label() -> str:
@@ -34,6 +35,25 @@ def worker_label() -> str:
 def _one_line(err: BaseException) -> str:
     text = " ".join(str(err).split())
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def run_error(err: BaseException, trace_path: str = "") -> str:
+    """A failed run's ``error``: one line, and for an I/O error the OS's reason first.
+
+    The terminal table shows the first 40 characters, which must say ``No space left on device``
+    rather than an exception's name and a long path; the row already names its trace, so a message
+    that starts with that path loses it.
+    """
+    code = getattr(err, "errno", None)
+    if not (isinstance(err, OSError) and code in errno.errorcode and err.strerror):
+        return _one_line(err)
+    text = " ".join(str(err.strerror).split()).removeprefix(f"{trace_path}: ")
+    reason = os.strerror(code)
+    if not text.startswith(reason):
+        text = f"{reason}: {text}"
+    if err.filename and str(err.filename) not in text:
+        text += f" ({err.filename})"
+    return text
 
 
 def failed_result(err: BaseException | str, worker: str = "") -> dict[str, Any]:
@@ -135,6 +155,6 @@ def run_case(scenario: Any, trace_path: str, threads: int | None = None) -> dict
         run_scenario(scenario, trace_path, force=True, threads=threads, handle_signals=False)
         result = trace_result(trace_path)
     except Exception as err:  # the run's failure is its result; see the module docstring
-        return failed_result(err, worker)
+        return failed_result(run_error(err, trace_path), worker)
     result["worker"] = worker
     return result

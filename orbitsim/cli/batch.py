@@ -29,9 +29,12 @@ EXIT_INTERRUPTED = 130
               help="Skip runs whose trace is complete and matches its scenario; --no-resume reruns all.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Show a progress bar of finished runs on stderr.")
+@click.option("--skip-invalid", is_flag=True,
+              help="Run the valid cases and list each invalid one, with its error, in the summary "
+                   "(status `invalid`) and exit 1 (default: an invalid case stops the sweep, exit 2).")
 @reports_errors
 def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers: int | None,
-            threads: int | None, resume: bool, progress: bool) -> None:
+            threads: int | None, resume: bool, progress: bool, skip_invalid: bool) -> None:
     """Run every case of a sweep and write OUTDIR/runs/<run-id>.h5 per run,
     OUTDIR/summary.csv and OUTDIR/summary.h5.
 
@@ -40,8 +43,10 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
     command again finishes an interrupted sweep. See docs/batch.md.
 
     Exit status: 0 when every run finished (complete or diverged: both are
-    results), 1 when a run failed (its error is in the summary), 2 for an
-    invalid sweep or an unreachable cluster, 130 after Ctrl-C.
+    results), 1 when a run failed or, with --skip-invalid, a case was invalid
+    (the errors are in the summary), 2 for an invalid sweep or an unreachable
+    cluster, 130 after Ctrl-C (the summary lists what finished; run the same
+    command again to finish the sweep).
 
     \b
     Examples:
@@ -52,33 +57,59 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
     from pathlib import Path
 
     from orbitsim.batch.cluster import ClusterError
-    from orbitsim.batch.driver import run_sweep
+    from orbitsim.batch.driver import SweepInterrupted, interrupt_once, run_sweep
     from orbitsim.batch.summary import format_table
     from orbitsim.batch.sweep import SweepError, load_sweep
 
     try:
-        sweep = load_sweep(sweep_file)
+        sweep = load_sweep(sweep_file, skip_invalid=skip_invalid)
     except SweepError as err:
         fail(str(err), EXIT_USAGE)
     target = Path(outdir) if outdir else Path("out") / sweep.name
     bar = _Bar(progress)
-    try:
-        outcome = run_sweep(sweep, target, scheduler=scheduler, workers=workers, threads=threads,
-                            resume=resume, progress=bar.update, on_start=bar.start)
-    except ClusterError as err:
-        fail(str(err), EXIT_USAGE)
-    except KeyboardInterrupt:
-        fail(f"interrupted; finished runs are kept in {target / 'runs'} and {target / 'summary.csv'} lists "
-             "them: run the same command again to finish the sweep", EXIT_INTERRUPTED)
-    finally:
+    # Held past run_sweep, so that a Ctrl-C while the error line below is printed is ignored too.
+    with interrupt_once():
+        try:
+            outcome = run_sweep(sweep, target, scheduler=scheduler, workers=workers, threads=threads,
+                                resume=resume, progress=bar.update, on_start=bar.start)
+        except ClusterError as err:
+            bar.close()
+            fail(str(err), EXIT_USAGE)
+        except KeyboardInterrupt as exc:
+            bar.close()
+            fail(_interrupted(exc.outcome if isinstance(exc, SweepInterrupted) else None), EXIT_INTERRUPTED)
         bar.close()
     click.echo(format_table(outcome.rows, sweep.params))
     counts = outcome.counts
-    parts = [f"{counts[s]} {s}" for s in ("complete", "diverged", "failed") if counts[s]]
+    parts = [f"{counts[s]} {s}" for s in ("complete", "diverged", "failed", "invalid") if counts[s]]
     click.echo(f"{len(outcome.rows)} runs: {', '.join(parts)}; {outcome.resumed} reused from earlier traces. "
                f"Summary: {outcome.files[0]}")
-    if counts["failed"]:
-        fail(f"{counts['failed']} run(s) failed; their errors are in the summary", EXIT_FAILURE)
+    problems = [f"{counts['failed']} run(s) failed"] if counts["failed"] else []
+    if sweep.invalid:
+        problems.append(f"{len(sweep.invalid)} invalid case(s) skipped ({_invalid_list(sweep.invalid)})")
+    if problems:
+        fail(f"{' and '.join(problems)}; the errors are in the summary", EXIT_FAILURE)
+
+
+def _interrupted(outcome: Any) -> str:
+    """The one line after Ctrl-C: what finished, where it is, and how to finish the sweep."""
+    if outcome is None:  # a bare KeyboardInterrupt: it came before anything was submitted
+        return "interrupted before any run started; run the same command again to start the sweep"
+    counts = outcome.counts
+    done = counts["complete"] + counts["diverged"] + counts["failed"]
+    where = f"traces in {outcome.outdir / 'runs'}, summary in {outcome.files[0]}"
+    if not counts["not run"]:
+        return f"interrupted, but all {done} run(s) had finished; {where}"
+    return (f"interrupted; {done} of {done + counts['not run']} run(s) finished, {counts['not run']} not run; "
+            f"{where}: run the same command again to finish the sweep")
+
+
+def _invalid_list(invalid: Any) -> str:
+    """Each distinct error once, with the cases it hit: in a grid one bad value spoils many cases."""
+    cases: dict[str, list[str]] = {}
+    for case in invalid:
+        cases.setdefault(case.message, []).append(str(case.index))
+    return "; ".join(f"case{'s' if len(c) > 1 else ''} {', '.join(c)}: {message}" for message, c in cases.items())
 
 
 class _Bar:
