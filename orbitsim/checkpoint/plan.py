@@ -33,15 +33,17 @@ from orbitsim.io.checkpoint import (
     read_checkpoint,
     read_checkpoint_group,
 )
+from orbitsim.io.schema import OutputError
 
 if TYPE_CHECKING:
+    from orbitsim.io.lock import OutputLock
     from orbitsim.scenario import Scenario
 
 __all__ = ["Continuation", "TraceState", "prepare_extension", "prepare_resume", "read_trace_state",
            "resolve_output", "scenario_differences"]
 
 #: Suffixes of the files beside an output path; ``resume`` accepts any of them for the output.
-SIDE_SUFFIXES = (".ckpt.tmp", ".ckpt", ".journal", ".tmp")
+SIDE_SUFFIXES = (".ckpt.tmp", ".ckpt", ".journal", ".lock", ".tmp")
 
 
 @dataclasses.dataclass
@@ -176,9 +178,16 @@ def prepare_resume(path: str | os.PathLike, *, scenario: Scenario | None = None,
         Nothing resumable, damaged or foreign files, a live writer, or a different
         scenario or integrator.
     """
-    from orbitsim.io.trace import TraceError
+    from orbitsim.io.lock import hold_output
 
     output = resolve_output(path)
+    with hold_output(output) as lock:  # refuses while another process writes the output
+        return _plan_resume(output, lock, scenario, integrator)
+
+
+def _plan_resume(output: Path, lock: OutputLock, scenario: Scenario | None, integrator: str | None) -> Continuation:
+    from orbitsim.io.trace import TraceError
+
     trace: TraceState | None = None
     foreign = ""
     if output.exists():
@@ -191,12 +200,28 @@ def prepare_resume(path: str | os.PathLike, *, scenario: Scenario | None = None,
     if checkpoint_path(output).exists():
         return _from_checkpoint_file(output, trace, foreign, scenario, integrator)
     if trace is None:
-        if Path(f"{output}.tmp").exists():
-            raise CheckpointError(f"{output}: only {output}.tmp is left: a run without output.checkpoint was killed "
-                                  "before it could save its state, so it cannot be resumed; run it again (add "
-                                  "output.checkpoint to its scenario to make long runs resumable)")
-        raise CheckpointError(f"{output}: no trace or checkpoint to resume")
+        lock.keep_previous()  # a second `resume` says the same
+        raise CheckpointError(_nothing_to_resume(output, lock.previous))
     return _from_trace(output, trace, scenario, integrator)
+
+
+def _nothing_to_resume(output: Path, previous: dict[str, Any] | None) -> str:
+    """Why a run left nothing to resume, from the files it left and its lock's record of it."""
+    from orbitsim.io.lock import describe_holder, rerun_command
+
+    command = rerun_command(previous)
+    again = f"run it again: `{command}`" if command else "run it again"
+    if journal_path(output).exists():
+        return (f"{output}: the run was killed before its first checkpoint (it saves one before its first step, once "
+                f"its kernels are compiled), so there is nothing to resume; {again}")
+    if Path(f"{output}.tmp").exists():
+        return (f"{output}: only {output}.tmp is left: a run without output.checkpoint was killed before it could "
+                f"save its state, so it cannot be resumed; {again} (with output.checkpoint in its scenario, or "
+                "--checkpoint-every, a long run can be resumed after a kill)")
+    if previous is not None:
+        return (f"{output}: the run ({describe_holder(previous)}) was killed before it wrote anything, so there is "
+                f"nothing to resume; {again}")
+    return f"{output}: no trace or checkpoint to resume (no run has written it)"
 
 
 def _from_checkpoint_file(output: Path, trace: TraceState | None, foreign: str, scenario: Scenario | None,
@@ -205,6 +230,7 @@ def _from_checkpoint_file(output: Path, trace: TraceState | None, foreign: str, 
     same_run = trace is not None and trace.attrs.get("scenario_sha256") == ckpt.scenario_sha256
     if (same_run and trace.attrs.get("status") == "complete" and trace.checkpoint is not None
             and trace.checkpoint.steps_done >= ckpt.steps_done):
+        _check_complete(output, trace, scenario, integrator)  # before the stale side files go
         check_side_files(output, force=True)  # refuses if a live process holds the journal
         remove_side_files(output)
         return Continuation(output, note=_complete_note(output, trace))
@@ -228,9 +254,23 @@ def _complete_note(output: Path, trace: TraceState) -> str:
             f"`orbitsim run --from {output} --steps N`")
 
 
+def _check_complete(output: Path, trace: TraceState, scenario: Scenario | None, integrator: str | None) -> None:
+    """A complete run is left alone, but a SCENARIO or --integrator given is still checked: exit 0
+    would tell the user that the file holds the run they named."""
+    if scenario is None and integrator is None:
+        return
+    text = trace.attrs.get("scenario")
+    if not text:
+        raise CheckpointError(f"{output}: the trace stores no scenario to check SCENARIO or --integrator against "
+                              "(written by an older orbitsim)")
+    stored = stored_scenario(str(text), str(trace.attrs.get("scenario_sha256", "")), output)
+    _check_same(stored, output, scenario, integrator)
+
+
 def _from_trace(output: Path, trace: TraceState, scenario: Scenario | None, integrator: str | None) -> Continuation:
     status = trace.attrs.get("status")
     if status == "complete":
+        _check_complete(output, trace, scenario, integrator)
         return Continuation(output, note=_complete_note(output, trace))
     if status == "diverged":
         raise CheckpointError(f"{output}: the run diverged; there is no finite state to continue from")
@@ -266,9 +306,18 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
     OutputError
         If ``output`` exists (and is not ``source``) without ``force``.
     """
-    from orbitsim.runner import OutputError
+    from orbitsim.io.lock import hold_output
 
     src = Path(source)
+    dst = Path(output) if output is not None else src
+    if dst.is_dir() or not dst.parent.is_dir():
+        raise OutputError(f"{dst}: not a file path in an existing directory")
+    with hold_output(dst):  # refuses while another process writes the new output
+        return _plan_extension(src, dst, steps, t_end, integrator, scenario, force)
+
+
+def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None, integrator: str | None,
+                    scenario: Scenario | None, force: bool) -> Continuation:
     trace = read_trace_state(src)
     status = trace.attrs.get("status")
     if status == "interrupted":
@@ -288,13 +337,9 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
         t_end=t_end)
     if longer.steps <= stored.steps:
         raise CheckpointError(f"{src}: --t-end {t_end:g} is not past the run's end (t = {stored.end_time:.10g})")
-    dst = Path(output) if output is not None else src
     in_place = dst.exists() and dst.resolve() == src.resolve()
-    if not in_place:
-        if dst.is_dir() or not dst.parent.is_dir():
-            raise OutputError(f"{dst}: not a file path in an existing directory")
-        if dst.exists() and not force:
-            raise OutputError(f"{dst}: output file already exists; use --force to overwrite it")
+    if not in_place and dst.exists() and not force:
+        raise OutputError(f"{dst}: output file already exists; use --force to overwrite it")
     check_side_files(dst, force)
     remove_side_files(dst)
     start = RunStart(trace.checkpoint, source_trace=src, overwrite=in_place or force, resumes=trace.checkpoint.resumes)

@@ -79,7 +79,7 @@ class StreamSink:
               final: Checkpoint | None) -> Path:
         """Write the final state (when given) as the ``checkpoint`` group and finish the trace."""
         if final is not None:
-            write_checkpoint_group(self.writer.new_group("checkpoint"), _for_trace(final))
+            add_checkpoint_group(self.writer, final)
         return self.writer.close(status, steps_done=steps_done, wall_time_s=wall_time_s, message=message)
 
     def abort(self) -> None:
@@ -137,7 +137,7 @@ class JournalSink:
             for chunk in self.journal.chunks():
                 writer.append(chunk)
             if final is not None:
-                write_checkpoint_group(writer.new_group("checkpoint"), _for_trace(final))
+                add_checkpoint_group(writer, final)
             path = writer.close(status, steps_done=steps_done, wall_time_s=wall_time_s, message=message)
         except BaseException:
             writer.abort()
@@ -150,9 +150,15 @@ class JournalSink:
         remove_side_files(self.output, self.journal)
 
 
-def _for_trace(ckpt: Checkpoint) -> Checkpoint:
-    """The trace's group: the scenario is in the root attributes, and there is no journal."""
-    return dataclasses.replace(ckpt, scenario="", journal_bytes=0, journal_crc32=0)
+def add_checkpoint_group(writer: TraceWriter, ckpt: Checkpoint) -> None:
+    """Give the trace its ``checkpoint`` group: built in memory, copied in by the writer (see
+    :mod:`orbitsim.io.h5safe`). The scenario is in the trace's root attributes, and there is no journal."""
+    from orbitsim.io.h5safe import in_memory
+
+    with in_memory() as memory:
+        group = memory.create_group("checkpoint")
+        write_checkpoint_group(group, dataclasses.replace(ckpt, scenario="", journal_bytes=0, journal_crc32=0))
+        writer.copy_group("checkpoint", group)
 
 
 def check_side_files(output: Path, force: bool) -> None:
@@ -160,10 +166,10 @@ def check_side_files(output: Path, force: bool) -> None:
 
     Raises
     ------
-    orbitsim.runner.OutputError
+    orbitsim.io.schema.OutputError
     """
     from orbitsim.io.checkpoint import journal_is_locked
-    from orbitsim.runner import OutputError
+    from orbitsim.io.schema import OutputError
 
     if journal_is_locked(journal_path(output)):
         raise OutputError(f"{output}: another orbitsim process is writing this output right now")
@@ -173,13 +179,18 @@ def check_side_files(output: Path, force: bool) -> None:
 
 
 def remove_side_files(output: Path, journal: Journal | None = None) -> None:
-    """Delete ``<OUT>.ckpt`` (first: a checkpoint without its journal is useless) and ``<OUT>.journal``."""
-    checkpoint_path(output).unlink(missing_ok=True)
-    Path(f"{checkpoint_path(output)}.tmp").unlink(missing_ok=True)
+    """Delete ``<OUT>.ckpt`` (first: a checkpoint without its journal is useless) and ``<OUT>.journal``.
+
+    Only files that exist are unlinked: on a read-only filesystem, unlinking a missing file fails
+    with EROFS rather than ENOENT, and a run that never asked for checkpoints must not fail on them.
+    """
+    for side in (checkpoint_path(output), Path(f"{checkpoint_path(output)}.tmp")):
+        if side.exists():
+            side.unlink()
     if journal is not None:
         journal.close(delete=True)
-    else:
-        journal_path(output).unlink(missing_ok=True)
+    elif journal_path(output).exists():
+        journal_path(output).unlink()
 
 
 def open_sink(scenario: Scenario, output: Path, attrs: dict[str, Any], *, overwrite: bool,

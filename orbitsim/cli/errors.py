@@ -4,11 +4,16 @@ Exit codes
 
 ===  =====================================================================================
 0    success
-1    runtime failure (an I/O error, an unexpected error; set ``ORBITSIM_DEBUG=1`` for the
-     traceback)
+1    an unexpected error (a bug: set ``ORBITSIM_DEBUG=1`` for the traceback), or a sweep
+     in which a run failed
 2    bad input or usage: a malformed scenario, a bad option, an unreadable trace, an
-     existing output file without ``--force``
+     existing output file without ``--force``, an output another process is writing, an
+     output directory that cannot be written; nothing is written
 3    the run diverged (its state became non-finite); the trace is kept
+4    an I/O error while writing (disk full, quota, a device error): the output path keeps
+     what it had before, and only a resumable checkpoint is left beside it
+5    ``compare``: no pair disagrees, but agreement is not testable (a chaotic pair, or an
+     unreliable reference)
 130  interrupted by SIGINT (Ctrl-C); 143 by SIGTERM; the trace is kept
 ===  =====================================================================================
 
@@ -27,12 +32,19 @@ from typing import Any, NoReturn, TypeVar
 
 import click
 
-__all__ = ["EXIT_DIVERGED", "EXIT_FAILURE", "EXIT_OK", "EXIT_USAGE", "fail", "reports_errors", "warn"]
+__all__ = ["EXIT_DIVERGED", "EXIT_FAILURE", "EXIT_IO", "EXIT_NOT_TESTABLE", "EXIT_OK", "EXIT_USAGE", "fail",
+           "reports_errors", "warn"]
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
 EXIT_DIVERGED = 3
+EXIT_IO = 4
+#: ``compare`` when no matched pair disagrees but the comparison cannot pass: a pair's agreement is
+#: not testable (chaos) or the IAS15 reference is unreliable. Distinct from 1 (a pair disagrees:
+#: orbitsim or the pairing is wrong) so that a script can tell "wrong" from "this scenario cannot be
+#: checked this way", and non-zero so that it never reads as a pass.
+EXIT_NOT_TESTABLE = 5
 
 #: Errors that mean "fix your input": (module, class name).
 USER_ERRORS: tuple[tuple[str, str], ...] = (
@@ -40,7 +52,7 @@ USER_ERRORS: tuple[tuple[str, str], ...] = (
     ("orbitsim.io.schema", "TraceError"),  # re-exported by orbitsim.io.trace; CheckpointError is one
     ("orbitsim.sampling", "SimulationError"),  # re-exported by orbitsim.simulation
     ("orbitsim.integrators.registry", "UnknownIntegratorError"),
-    ("orbitsim.runner", "OutputError"),
+    ("orbitsim.io.schema", "OutputError"),  # re-exported by orbitsim.runner; OutputBusyError is one
 )
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -72,6 +84,13 @@ def warn(message: str) -> None:
     click.echo(f"orbitsim: note: {one_line(message)}", err=True)
 
 
+def _is_complete(exc: OSError) -> bool:
+    """Whether ``exc`` is a :class:`orbitsim.io.schema.OutputWriteError`, whose text is already the whole line."""
+    module = sys.modules.get("orbitsim.io.schema")
+    cls = getattr(module, "OutputWriteError", None) if module is not None else None
+    return cls is not None and isinstance(exc, cls)
+
+
 def reports_errors(func: F) -> F:
     """Decorate a command so that errors end it with one line and the right exit code, no traceback."""
 
@@ -96,7 +115,7 @@ def reports_errors(func: F) -> F:
                 raise
             if isinstance(exc, OSError):
                 where = f"{exc.filename}: " if exc.filename else ""
-                fail(f"{where}{exc.strerror or exc}", EXIT_FAILURE)
+                fail(str(exc) if _is_complete(exc) else f"{where}{exc.strerror or exc}", EXIT_IO)
             fail(f"unexpected {type(exc).__name__}: {exc} (set ORBITSIM_DEBUG=1 for a traceback)", EXIT_FAILURE)
 
     return wrapper  # type: ignore[return-value]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import click
@@ -41,8 +42,13 @@ def command(trace: str, show_scenario: bool) -> None:
         _checkpoint_info(trace, show_scenario)
         return
     from orbitsim.checkpoint.report import trace_checkpoint_lines
+    from orbitsim.io.lock import current_holder, describe_holder
     from orbitsim.io.trace import open_trace_summary
 
+    writer = current_holder(trace)
+    if writer is not None and not os.path.exists(trace) and not show_scenario:
+        click.echo(f"{trace}: a run is writing it now ({describe_holder(writer)}); the trace appears when it ends")
+        return
     summary = open_trace_summary(trace)
     attrs = summary["attrs"]
     if show_scenario:
@@ -52,7 +58,10 @@ def command(trace: str, show_scenario: bool) -> None:
     for key in _HEADER:
         if key in attrs and attrs[key] != "":
             click.echo(f"  {key:<20} {_show(attrs[key], full=key == 'message')}")
-    click.echo(f"samples:  {summary['n_samples']}{_time_range(trace, summary['n_samples'])}")
+    span = _time_range(trace, summary["n_samples"])
+    if span and attrs.get("status") == "diverged":
+        span += " (over the samples kept, the last finite ones; then the run diverged)"
+    click.echo(f"samples:  {summary['n_samples']}{span}")
     click.echo(f"bodies:   {summary['n_bodies']}")
     click.echo("datasets:")
     for name, shape in sorted(summary["shapes"].items()):
@@ -65,6 +74,9 @@ def command(trace: str, show_scenario: bool) -> None:
         click.echo(f"  {key:<{width}}  {value}")
     for line in trace_checkpoint_lines(trace, attrs):
         click.echo(line)
+    if writer is not None:
+        click.echo(f"writer:   {describe_holder(writer)} is writing this output now; it replaces this file "
+                   "when it ends")
 
 
 def _checkpoint_info(path: str, show_scenario: bool) -> None:

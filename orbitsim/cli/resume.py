@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from orbitsim.cli.errors import reports_errors
-from orbitsim.cli.options import quiet_option, threads_option
+from orbitsim.cli.options import OneLineUsageError, is_hdf5_name, quiet_option, threads_option
 
 
 @click.command("resume")
@@ -29,22 +29,41 @@ def command(output: str, scenario: str | None, integrator: str | None, threads: 
     it is (exit 0); extend it with `orbitsim run --from OUT.h5 --steps N`.
 
     \b
-    Exit codes: as `orbitsim run` (0 complete, 2 nothing resumable or a mismatch, 3 diverged,
-    130 SIGINT, 143 SIGTERM, 1 other failure).
+    Exit codes: as `orbitsim run` (0 complete, 2 nothing resumable, a mismatch, or another process
+    writes OUT, 3 diverged, 4 an I/O error such as a full disk, 130 SIGINT, 143 SIGTERM, 1 unexpected).
 
     \b
     Examples:
       orbitsim resume long.h5
       orbitsim resume long.h5 long.yaml --integrator verlet
     """
-    from orbitsim.checkpoint import prepare_resume
+    from orbitsim.checkpoint import prepare_resume, resolve_output
     from orbitsim.cli.run import execute
+    from orbitsim.io.lock import hold_output
     from orbitsim.scenario import load_scenario
 
+    _check_name(output)
     given = load_scenario(scenario) if scenario is not None else None
-    plan = prepare_resume(output, scenario=given, integrator=integrator)
-    if plan.start is None:
-        if not quiet:
-            click.echo(plan.note)
-        return
-    execute(plan.scenario, plan.output, force=False, threads=threads, quiet=quiet, start=plan.start)
+    with hold_output(resolve_output(output)):  # from the first look at its files to the last rename
+        plan = prepare_resume(output, scenario=given, integrator=integrator)
+        if plan.start is None:
+            if not quiet:
+                click.echo(plan.note)
+            return
+        execute(plan.scenario, plan.output, force=False, threads=threads, quiet=quiet, start=plan.start)
+
+
+def _check_name(path: str) -> None:
+    """Refuse to continue a run whose output is not named as HDF5 (``out.csv``, from an orbitsim that
+    allowed it): resuming would write HDF5 under that name again. Renaming its files is all it takes."""
+    from orbitsim.checkpoint.plan import resolve_output
+    from orbitsim.io.checkpoint import checkpoint_path, journal_path
+
+    output = resolve_output(path)
+    if is_hdf5_name(output) or not (output.exists() or checkpoint_path(output).exists()):
+        return  # an HDF5 name, or nothing there to resume (prepare_resume says so)
+    new = output.with_suffix(".h5")
+    files = [p for p in (output, checkpoint_path(output), journal_path(output)) if p.exists()]
+    renames = ", ".join(f"{p.name} to {new.name}{p.name[len(output.name):]}" for p in files)
+    raise OneLineUsageError(f"{output}: orbitsim writes HDF5 traces, and this is not an HDF5 file name; rename "
+                            f"{renames}, then run `orbitsim resume {new}`")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import click
@@ -12,6 +13,7 @@ import click
 from orbitsim.cli.errors import fail, reports_errors, warn
 from orbitsim.cli.options import (
     FINITE_POSITIVE,
+    check_trace_output,
     force_option,
     output_option,
     quiet_option,
@@ -29,7 +31,7 @@ _FIXED_BY_FROM = ("dt", "every", "interval", "positions")
 
 @click.command("run")
 @click.argument("scenario", metavar="[SCENARIO]", required=False)
-@output_option("Trace file to write (default: <scenario name>.h5 in the current directory). "
+@output_option("HDF5 trace file to write, named .h5 (default: <scenario name>.h5 in the current directory). "
                "Example: -o runs/circ.h5")
 @click.option("--integrator", metavar="NAME", default=None,
               help="Override the integrator (a name or alias from `orbitsim list integrators`). "
@@ -75,9 +77,12 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
     Ctrl-C or SIGTERM stop the run and keep every sample taken so far (status "interrupted");
     `orbitsim resume OUT` continues it. With output.checkpoint (or --checkpoint-every/-seconds)
     even a hard kill can be resumed; --from TRACE.h5 extends a complete run (SCENARIO optional).
+    A run expected to take more than an hour (timed on this machine, as `orbitsim validate`
+    prints it) is announced by a note before its first step.
 
     \b
-    Exit codes: 0 complete, 2 bad input, 3 diverged, 130 SIGINT, 143 SIGTERM, 1 other failure.
+    Exit codes: 0 complete, 2 bad input (or another process writes OUT), 3 diverged, 4 an I/O
+    error such as a full disk (OUT keeps what it had), 130 SIGINT, 143 SIGTERM, 1 unexpected error.
 
     \b
     Examples:
@@ -103,6 +108,8 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
     overrides = {"integrator": integrator, "dt": dt, "steps": steps, "t_end": t_end, "every": every,
                  "interval": interval, "record_positions": positions, **checkpoints}
     chosen = _apply_overrides(loaded, overrides)
+    if output is not None:
+        check_trace_output(output, chosen.name)
     execute(chosen, output, force=force, threads=threads, quiet=quiet)
 
 
@@ -114,8 +121,9 @@ def execute(scenario: Any, output: Any, *, force: bool, threads: int | None, qui
         for note in scenario.notes():
             warn(note)
     bar = _ProgressBar(scenario.name) if not quiet and _stderr_is_terminal() else None
+    progress = None if quiet else _LongRunNote(scenario, threads, bar)
     try:
-        summary = run_scenario(scenario, output, force=force, progress=bar, threads=threads, start=start)
+        summary = run_scenario(scenario, output, force=force, progress=progress, threads=threads, start=start)
     finally:
         if bar is not None:
             bar.close()
@@ -134,10 +142,27 @@ def _extend(source: str, scenario: str | None, output: str | None, integrator: s
         raise click.UsageError(f"--from continues the stored run, whose settings are fixed: drop {', '.join(given)}")
     if steps is None and t_end is None:
         raise click.UsageError("--from needs --steps N (more steps) or --t-end T (the new end time)")
-    plan = prepare_extension(source, steps=steps, t_end=t_end, output=output, integrator=integrator,
-                             scenario=load_scenario(scenario) if scenario is not None else None, force=force)
-    chosen = _apply_overrides(plan.scenario, checkpoints)
-    execute(chosen, plan.output, force=force, threads=threads, quiet=quiet, start=plan.start)
+    _check_extension_output(source, output)
+    from orbitsim.io.lock import hold_output
+
+    given = load_scenario(scenario) if scenario is not None else None
+    target = Path(output) if output is not None else Path(source)
+    with hold_output(target):  # from the first look at its files to the last rename
+        plan = prepare_extension(source, steps=steps, t_end=t_end, output=output, integrator=integrator,
+                                 scenario=given, force=force)
+        chosen = _apply_overrides(plan.scenario, checkpoints)
+        execute(chosen, plan.output, force=force, threads=threads, quiet=quiet, start=plan.start)
+
+
+def _check_extension_output(source: str, output: str | None) -> None:
+    """``run --from``: the same output checks as ``run``; without ``-o`` the source is replaced in
+    place, so an old trace named ``out.csv`` must not be renewed under that name either."""
+    stem = Path(source).stem
+    if output is not None:
+        check_trace_output(output, stem)
+    elif Path(source).is_file():
+        check_trace_output(source, stem, fix=f"give -o {Path(source).with_suffix('.h5')} to write the extended run "
+                                             "there")
 
 
 def _apply_overrides(scenario: Any, overrides: dict[str, Any]) -> Any:
@@ -152,13 +177,15 @@ def _apply_overrides(scenario: Any, overrides: dict[str, Any]) -> Any:
         option = _OPTION_FOR_KEY.get(err.key or "")
         if option is None:
             raise
-        raise click.BadParameter(err.reason, param_hint=f"'{option}'") from None
+        value = overrides.get(option[2:].replace("-", "_"))
+        given = f"{option} {value:g}" if isinstance(value, float) else f"{option} {value}" if value else option
+        fail(f"{given}: {err.reason}")  # one line, exit 2: click's usage text would bury the reason
 
 
 def _report(summary: Any, scenario: Any, quiet: bool) -> None:
     """Print the summary line; exit non-zero for a diverged or interrupted run."""
     if not quiet:
-        rate = f"{summary.steps_per_s:,.0f} steps/s" if math.isfinite(summary.steps_per_s) else "- steps/s"
+        rate = rate_text(summary.steps_per_s)
         end = f"t = {summary.end_time:.10g}" if summary.samples else "no samples"
         click.echo(f"{summary.name}: {summary.status}, {summary.steps_done} of {summary.steps_requested} steps "
                    f"in {summary.wall_time_s:.3g} s ({rate}), max |dE/E| = {summary.max_abs_energy_error:.3g}, "
@@ -172,11 +199,54 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
              summary.exit_code)
 
 
+def rate_text(steps_per_s: float) -> str:
+    """A run's speed at any scale: ``68,197 steps/s``, ``2.5 steps/s``, ``0.25 steps/s``, ``12.3 s/step``.
+
+    Whole steps/s from 100 up, else three significant figures; below 0.1 steps/s (a large N) the
+    seconds per step read better. ``-`` when there is no rate (no step done, or no time measured).
+    """
+    if not (math.isfinite(steps_per_s) and steps_per_s > 0.0):
+        return "- steps/s"
+    if steps_per_s >= 100.0:
+        return f"{steps_per_s:,.0f} steps/s"
+    if steps_per_s >= 0.1:
+        return f"{steps_per_s:.3g} steps/s"
+    seconds = 1.0 / steps_per_s
+    return f"{seconds:,.0f} s/step" if seconds >= 100.0 else f"{seconds:.3g} s/step"
+
+
 def _stderr_is_terminal() -> bool:
     try:
         return sys.stderr.isatty()
     except (AttributeError, ValueError):  # replaced or closed stream
         return False
+
+
+class _LongRunNote:
+    """Warn, once the run's checks have passed and before its first step, when it will take hours.
+
+    The runner calls its progress callback first just before it steps, after the output and the
+    scenario are checked: a refused run prints only its error, not this note as well.
+    """
+
+    def __init__(self, scenario: Any, threads: int | None, bar: _ProgressBar | None) -> None:
+        self.scenario, self.threads, self.bar = scenario, threads, bar
+        self.checked = False
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.checked:
+            self.checked = True
+            self._warn_if_long(total - done)
+        if self.bar is not None:
+            self.bar(done, total)
+
+    def _warn_if_long(self, steps: int) -> None:
+        from orbitsim.preflight import LONG_RUN_S, estimate_time
+
+        estimate = estimate_time(self.scenario, threads=self.threads, steps=steps)
+        if estimate is not None and estimate.total_s > LONG_RUN_S:
+            hint = "" if self.scenario.checkpoints else "; --checkpoint-seconds 600 makes it resumable after a kill"
+            warn(f"this run is expected to take a long time: {estimate.describe()}{hint}")
 
 
 class _ProgressBar:

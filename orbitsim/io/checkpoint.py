@@ -52,6 +52,7 @@ import numpy as np
 
 from orbitsim._version import __version__
 from orbitsim.io.durable import replace_durably
+from orbitsim.io.h5safe import in_memory, io_failure, write_image
 from orbitsim.io.journal import (
     Journal,
     as_chunk,
@@ -215,15 +216,25 @@ def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "") -> 
 def write_checkpoint(path: str | os.PathLike, ckpt: Checkpoint) -> None:
     """Publish ``ckpt`` at ``path`` atomically: write ``<path>.tmp``, fsync, rename, fsync the directory.
 
-    A kill at any instant leaves either the previous file or this one at ``path``.
+    A kill at any instant leaves either the previous file or this one at ``path``; an I/O error
+    removes ``<path>.tmp`` and raises :class:`~orbitsim.io.schema.OutputWriteError`, the previous file
+    untouched.
     """
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as f:
+    with in_memory() as f:  # built in memory, so that only plain writes can meet a full disk
         f.attrs["format"] = CHECKPOINT_FORMAT
         f.attrs["format_version"] = CHECKPOINT_VERSION
         write_checkpoint_group(f, ckpt)
-    replace_durably(tmp, path)
+        try:
+            write_image(f, tmp)
+        except OSError as err:
+            raise io_failure(err, f"{path}: {{reason}}", tmp) from None
+    try:
+        replace_durably(tmp, path)
+    except OSError as err:  # the previous checkpoint, if any, is still whole at ``path``
+        tmp.unlink(missing_ok=True)
+        raise io_failure(err, f"{path}: {{reason}}", tmp) from None
 
 
 def read_checkpoint(path: str | os.PathLike) -> Checkpoint:

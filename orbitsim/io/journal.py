@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.io.durable import datasync
+from orbitsim.io.h5safe import io_failure
 from orbitsim.io.schema import CheckpointError
 
 __all__ = ["Journal", "as_chunk", "check_journal", "journal_dtype", "journal_is_locked", "journal_path"]
@@ -68,7 +69,9 @@ class Journal:
         exists = self.path.exists()
         if keep_bytes and not exists:
             raise CheckpointError(f"{self.path}: the sample journal the checkpoint needs is missing")
-        self._fh = open(self.path, "r+b" if exists else "w+b")  # held open (and locked) for the run
+        # Unbuffered, held open (and locked) for the run: a chunk is one write call, and a failed write
+        # (a full disk) raises in append, never later from a buffer's flush at close.
+        self._fh = open(self.path, "r+b" if exists else "w+b", buffering=0)
         try:
             _lock(self._fh, self.path)
             _check_prefix(self._fh, self.path, keep_bytes, crc32)
@@ -90,19 +93,25 @@ class Journal:
         rec = np.empty(len(chunk.time), dtype=self.dtype)
         for name in self.dtype.names:
             rec[name] = getattr(chunk, name)
-        data = rec.tobytes()
-        self._fh.write(data)
+        data = memoryview(rec.tobytes())
+        try:
+            written = 0
+            while written < len(data):  # a raw write may write less than asked
+                written += self._fh.write(data[written:])
+        except OSError as err:
+            raise io_failure(err, f"{self.path}: {{reason}}", self.path) from None
         self.bytes += len(data)
         self.crc32 = zlib.crc32(data, self.crc32)
 
     def sync(self) -> None:
         """Make every appended byte durable (before a checkpoint names it)."""
-        self._fh.flush()
-        datasync(self._fh.fileno())
+        try:
+            datasync(self._fh.fileno())
+        except OSError as err:
+            raise io_failure(err, f"{self.path}: {{reason}}", self.path) from None
 
     def chunks(self, stop: int | None = None) -> Iterator[SimpleNamespace]:
         """Read the first ``stop`` records (default all) back, block by block, as chunk-like objects."""
-        self._fh.flush()
         total = self.records if stop is None else stop
         per_block = max(1, _JOURNAL_BLOCK_BYTES // self.dtype.itemsize)
         with open(self.path, "rb") as fh:

@@ -3,10 +3,20 @@
 Data go to ``<path>.tmp`` and are renamed onto ``<path>`` only in :meth:`TraceWriter.close`, so a
 file at ``<path>`` is always complete. Samples are buffered up to a bounded size and written
 block-wise, because resizing HDF5 datasets once per sample is slow; memory use stays flat.
+
+An I/O error at any write (a full disk, a quota, a device error; the rename included) discards the
+``.tmp`` (:func:`orbitsim.io.h5safe.discard`, which keeps HDF5 from crashing on it) and raises one
+:class:`~orbitsim.io.schema.OutputWriteError` naming the path and the cause: ``<path>`` keeps whatever
+it held before. No HDF5 object of the file is ever released while it may still have data to write:
+the sample datasets stay open for the writer's life, and the small groups (``bodies``,
+``checkpoint``) are built in memory and copied in by one call. So HDF5 writes only inside the
+writer's own calls, where a failure is caught, never from an object's destructor, where h5py can
+only print it (and where a failure left HDF5 in a state that crashed at the next close).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import time as _time
@@ -19,6 +29,7 @@ import numpy as np
 
 from orbitsim._version import __version__
 from orbitsim.io.durable import replace_durably
+from orbitsim.io.h5safe import H5_WRITE_ERRORS, create, discard, in_memory, io_failure, surfaced, vfd_handle
 from orbitsim.io.schema import (
     BODY_ARRAYS,
     FINAL_STATUSES,
@@ -133,15 +144,16 @@ class TraceWriter:
         self._buffer: list[dict[str, np.ndarray]] = []
         self._buffer_rows = 0
         self._buffer_bytes = 0
-        # Truncating a stale .tmp from a crashed run is intended; HDF5 file locking
-        # refuses if another live writer still holds it.
-        self._file: h5py.File | None = h5py.File(self.tmp_path, "w")
-        try:
+        self._datasets: dict[str, h5py.Dataset] = {}
+        # Truncating a stale .tmp from a crashed run is intended: the caller holds the output's
+        # lock (orbitsim.io.lock), so no live writer can own it.
+        self._file: h5py.File | None = None
+        self._handle: int | None = None
+        with self._writing():
+            self._file = create(self.tmp_path)
+            self._handle = vfd_handle(self._file)
             _bound_metadata_cache(self._file)
             self._init_file(self._file, attrs, names, masses)
-        except BaseException:
-            self.abort()
-            raise
 
     def _init_file(self, f: h5py.File, attrs: Mapping[str, Any], names: Sequence[str],
                    masses: np.ndarray) -> None:
@@ -154,14 +166,28 @@ class TraceWriter:
                     orbitsim_version=__version__, status="running")
         for key, value in root.items():
             f.attrs[key] = _attr_value(key, value)
-        bodies = f.create_group("bodies")
-        bodies.create_dataset("names", data=list(names), dtype=h5py.string_dtype("utf-8"))
-        bodies.create_dataset("masses", data=masses)
+        with in_memory() as memory:  # copied in whole: see the module docstring
+            bodies = memory.create_group("bodies")
+            bodies.create_dataset("names", data=list(names), dtype=h5py.string_dtype("utf-8"))
+            bodies.create_dataset("masses", data=masses)
+            f.copy(bodies, "bodies")
         for name, tail in self._trailing.items():
             chunks = _body_chunks(self.n_bodies) if len(tail) == 2 else (_SERIES_CHUNK_ROWS, *tail)
-            f.create_dataset(name, shape=(0, *tail), maxshape=(None, *tail), chunks=chunks,
-                             dtype=np.int64 if name == "step" else np.float64,
-                             compression="gzip", compression_opts=4, shuffle=True)
+            self._datasets[name] = f.create_dataset(
+                name, shape=(0, *tail), maxshape=(None, *tail), chunks=chunks,
+                dtype=np.int64 if name == "step" else np.float64, compression="gzip", compression_opts=4, shuffle=True)
+
+    @contextlib.contextmanager
+    def _writing(self) -> Any:
+        """Around every call that may write: an I/O error discards the file and becomes one
+        :class:`OutputWriteError`."""
+        try:
+            with surfaced():
+                yield
+        except H5_WRITE_ERRORS as err:
+            self.abort()
+            raise io_failure(err, f"{self.path}: {{reason}} while writing the trace ({self.tmp_path}, now removed)",
+                             self.tmp_path) from None
 
     @property
     def samples_written(self) -> int:
@@ -226,13 +252,14 @@ class TraceWriter:
     def _write_buffer(self) -> None:
         if not self._buffer:
             return
-        f = self._require_open()
-        for name in self._buffer[0]:
-            block = np.concatenate([d[name] for d in self._buffer])
-            ds = f[name]
-            start = ds.shape[0]
-            ds.resize(start + block.shape[0], axis=0)
-            ds[start:] = block
+        self._require_open()
+        with self._writing():
+            for name in self._buffer[0]:
+                block = np.concatenate([d[name] for d in self._buffer])
+                ds = self._datasets[name]
+                start = ds.shape[0]
+                ds.resize(start + block.shape[0], axis=0)
+                ds[start:] = block
         self._buffer.clear()
         self._buffer_rows = self._buffer_bytes = 0
 
@@ -242,22 +269,29 @@ class TraceWriter:
         bad = RESERVED_ATTRS.intersection(kw)
         if bad:
             raise ValueError(f"{self.path}: reserved trace attributes {sorted(bad)}")
-        for key, value in kw.items():
-            f.attrs[key] = _attr_value(key, value)
+        values = {key: _attr_value(key, value) for key, value in kw.items()}
+        with self._writing():
+            for key, value in values.items():
+                f.attrs[key] = value
 
-    def new_group(self, name: str) -> h5py.Group:
-        """An empty group ``name`` in the open file, replacing one of that name (e.g. ``checkpoint``)."""
+    def copy_group(self, name: str, source: h5py.Group) -> None:
+        """Copy ``source`` (e.g. a group built in memory) into the trace as the group ``name``,
+        replacing one of that name, in one HDF5 call: no object of the trace file is left to
+        write, and maybe fail, when it is released."""
         f = self._require_open()
         if name in self._trailing or name == "bodies":
             raise ValueError(f"{self.path}: {name!r} is a dataset of the trace format")
-        if name in f:
-            del f[name]
-        return f.create_group(name)
+        with self._writing():
+            if name in f:
+                del f[name]
+            f.copy(source, name)
 
     def flush(self) -> None:
         """Write buffered samples and flush HDF5 buffers to the temporary file."""
         self._write_buffer()
-        self._require_open().flush()
+        f = self._require_open()
+        with self._writing():
+            f.flush()
 
     def close(self, status: str = "complete", *, steps_done: int | None = None,
               wall_time_s: float | None = None, message: str = "") -> Path:
@@ -286,18 +320,26 @@ class TraceWriter:
             steps_done = self._last_step
         if wall_time_s is None:
             wall_time_s = _time.perf_counter() - self._t_start
-        self.flush()
+        self._write_buffer()
         final = {"status": status, "wall_time_s": float(wall_time_s), "message": message}
         if steps_done is not None:
             final["steps_done"] = int(steps_done)
-        for key, value in final.items():
-            f.attrs[key] = value
-        f.close()
+        with self._writing():
+            for key, value in final.items():
+                f.attrs[key] = value
+            f.flush()  # every pending write happens here, where its failure is caught
+            self._datasets.clear()
+            f.close()
         self._file = None
         if self.path.exists() and not self._overwrite:
             # Someone created the target during the run: keep our data in .tmp instead of clobbering.
             raise FileExistsError(f"{self.path}: appeared during the run; trace left at {self.tmp_path}")
-        replace_durably(self.tmp_path, self.path)
+        try:
+            replace_durably(self.tmp_path, self.path)
+        except OSError as err:  # the fsync of the file or the rename: the output path is untouched
+            self.tmp_path.unlink(missing_ok=True)
+            raise io_failure(err, f"{self.path}: {{reason}} while moving the finished trace into place "
+                                  f"({self.tmp_path}, now removed)", self.tmp_path) from None
         return self.path
 
     def abort(self) -> None:
@@ -305,7 +347,8 @@ class TraceWriter:
         if self._file is None:
             return
         try:
-            self._file.close()
+            discard(self._file, self._handle)  # before the datasets are released, whose destructors would write
+            self._datasets.clear()
         finally:
             self._file = None
             self.tmp_path.unlink(missing_ok=True)

@@ -1,0 +1,267 @@
+"""The chunk loop of one run: samples into the sink, checkpoints, divergence, and the summary.
+
+:func:`orbitsim.runner.run_scenario` checks the output, takes its lock, opens the sink and the
+signal handling, and hands the rest to :class:`RunLoop`; this module holds what happens between
+the first jitted call and the closed trace, and what a run that ended by an I/O error reports
+(:func:`run_failure`).
+
+Exit codes (:attr:`RunSummary.exit_code`): 0 complete, 3 diverged, 128 + signal number when
+interrupted by a signal (130 SIGINT, 143 SIGTERM), 1 when stopped by ``stop()``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import signal
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from orbitsim.stopping import Stopper
+
+if TYPE_CHECKING:
+    from orbitsim.checkpoint.sinks import RunStart
+    from orbitsim.io.checkpoint import Checkpoint
+    from orbitsim.io.schema import OutputWriteError
+    from orbitsim.sampling import SamplePlan
+    from orbitsim.scenario import Scenario
+    from orbitsim.simulation import SampleChunk, Simulation
+
+__all__ = ["EXIT_DIVERGED", "EXIT_OK", "EXIT_STOPPED", "RunLoop", "RunSummary", "run_failure"]
+
+EXIT_OK = 0
+EXIT_STOPPED = 1
+EXIT_DIVERGED = 3
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What a run did; ``exit_code`` is what ``orbitsim run`` exits with."""
+
+    name: str
+    output: Path
+    status: str
+    exit_code: int
+    steps_requested: int
+    steps_done: int
+    samples: int
+    end_time: float
+    wall_time_s: float
+    max_abs_energy_error: float
+    threads: int
+    message: str = ""
+    resumable: bool = False
+
+    @property
+    def steps_per_s(self) -> float:
+        """Steps per second of wall time (compile time included on a cold cache)."""
+        return self.steps_done / self.wall_time_s if self.wall_time_s > 0 else math.inf
+
+
+class RunLoop:
+    """The chunk loop, its checkpoints, and the bookkeeping the summary and the trace need."""
+
+    def __init__(self, sink: Any, scenario: Scenario, progress: Callable[[int, int], None] | None,
+                 on_chunk: Callable[[Simulation, SampleChunk], None] | None, start: RunStart | None,
+                 force: bool) -> None:
+        from orbitsim.checkpoint.policy import Checkpointer
+
+        self.sink, self.scenario, self.steps = sink, scenario, scenario.steps
+        self.progress, self.on_chunk = progress, on_chunk
+        self.start_point = start
+        self.sim: Simulation | None = None
+        self.samples = 0
+        self.last_time = math.nan
+        self.last_step = 0
+        self.e0: float | None = None
+        self.max_err = 0.0
+        self.energy_failure: tuple[int, float, float] | None = None  # step, time, energy of the first bad sample
+        self.safe = False  # True where the state agrees with the samples written: a checkpoint may be taken
+        self.checkpoints = Checkpointer(scenario, sink, start, force)
+        if start is not None:
+            self._continue_from(start)
+        self.start = time.perf_counter()
+
+    def _continue_from(self, start: RunStart) -> None:
+        ckpt = start.checkpoint
+        self.samples = ckpt.samples_written
+        if self.samples:
+            self.last_time, self.last_step = ckpt.last_sample_time, ckpt.last_sample_step
+            self.e0, self.max_err = ckpt.E0, ckpt.max_abs_energy_error
+
+    @property
+    def diverged(self) -> bool:
+        return self.energy_failure is not None or bool(getattr(self.sim, "diverged", False))
+
+    def run(self, plan: SamplePlan, threads: int | None, stopper: Stopper) -> None:
+        if self.progress:
+            self.progress(self.start_point.checkpoint.steps_done if self.start_point else 0, self.steps)
+        if stopper.requested():
+            return
+        self.sim = self._make_simulation(threads)
+        self.safe = True
+        with stopper.critical():
+            self.sink.set_attrs(threads=int(self.sim.threads_used))  # known only once numba is set up
+            self.checkpoints.initial(self)
+        stopper.in_chunks = True
+        try:
+            chunks = self.sim.chunks(plan, record_positions=self.sink.record_positions, yield_empty=True)
+            while True:
+                self.safe = False  # a stop raised inside the next call finds the state ahead of the samples
+                chunk = next(chunks, None)
+                if chunk is None:
+                    break
+                with stopper.critical():
+                    self._take(chunk)
+                    if self.energy_failure is not None:
+                        break  # diverged: the state is past the samples kept, so no checkpoint from here
+                    self.safe = True
+                    self.checkpoints.maybe(self)
+                if stopper.requested():
+                    return
+            self.safe = not self.diverged
+        finally:
+            stopper.in_chunks = False
+
+    def _make_simulation(self, threads: int | None) -> Simulation:
+        from orbitsim.checkpoint.state import restore_state
+        from orbitsim.simulation import Simulation
+
+        sc = self.scenario
+        pos, vel = sc.positions, sc.velocities
+        if self.start_point is not None:
+            state = self.start_point.checkpoint.state
+            pos, vel = state.pos.T, state.vel.T
+        sim = Simulation(sc.masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.dt, sc.G, sc.softening, 0.0,
+                         threads, dict(sc.integrator_settings))
+        if self.start_point is not None:
+            restore_state(sim, self.start_point.checkpoint.state)
+        return sim
+
+    def _take(self, chunk: SampleChunk) -> None:
+        chunk, energy = self._finite_energy_part(chunk) if len(chunk) else (chunk, None)
+        if len(chunk):
+            self.sink.append(chunk)
+            if self.e0 is None:
+                self.e0 = float(energy[0])
+            err = self._energy_error(energy)
+            if not err <= self.max_err:  # not max(): max(0.0, nan) is 0.0, a nan would read as perfect
+                self.max_err = err
+            self.samples += len(chunk)
+            self.last_time = float(chunk.time[-1])
+            self.last_step = int(chunk.step[-1])
+            if self.on_chunk:
+                self.on_chunk(self.sim, chunk)
+        if self.energy_failure is not None:  # |dE/E| is inf (or nan) from here: never a finite number
+            bad = self.energy_failure[2]
+            self.max_err = self._energy_error(np.array([bad])) if self.e0 is not None else math.nan
+        if self.progress:
+            self.progress(self.sim.steps_done, self.steps)
+
+    def _finite_energy_part(self, chunk: SampleChunk) -> tuple[SampleChunk, np.ndarray]:
+        """The samples before the first whose energy is not finite (all of them, normally).
+
+        The state can stay finite while T + U overflows (m |v|^2 / 2 of a body thrown out at
+        1e160): such a sample ends the run as diverged, and is neither stored nor counted.
+        """
+        head, energy, bad = chunk.finite_energy_head()
+        if bad is not None:
+            with np.errstate(all="ignore"):  # inf + -inf is the point here, not a warning
+                self.energy_failure = (int(chunk.step[bad]), float(chunk.time[bad]), float(chunk.energy[bad]))
+        return head, energy
+
+    def _energy_error(self, energy: np.ndarray) -> float:
+        """max |dE/E| over ``energy``; inf where the difference overflows."""
+        from orbitsim.results import relative_energy_error
+
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow gives inf, honestly, not a warning
+            return float(np.max(np.abs(relative_energy_error(energy, self.e0))))
+
+    def wall(self) -> float:
+        """Wall time of the run, the parts before any resume included."""
+        return self.checkpoints.prior_wall + time.perf_counter() - self.start
+
+    def where(self) -> str:
+        """How far the run got, for an error message."""
+        done = self.sim.steps_done if self.sim is not None else self.last_step
+        return f"at step {done} of {self.steps}"
+
+    def fail(self, exc: BaseException) -> Checkpoint | None:
+        """An error ended the run: keep what can be kept, and never a resumable state's files.
+
+        Returns the checkpoint the run can be resumed from, if one is kept. After an I/O error
+        nothing more is written (the disk may be full): the trace is discarded, and only a
+        published checkpoint with its journal stays.
+        """
+        published = getattr(self.sink, "published", None) or self.checkpoints.published
+        if self.sink.periodic and published is not None:
+            self.sink.journal.close()  # the checkpoint stays, resumable once the cause is fixed
+            return published
+        if self.samples and not self.sink.periodic and not isinstance(exc, OSError):
+            with contextlib.suppress(OSError):  # keep the samples as a resumable trace if that can be written
+                self.sink.close("interrupted", steps_done=self.last_step, wall_time_s=self.wall(),
+                                message="run ended by an error", final=self.checkpoints.kept())
+                return None
+        self.sink.abort()
+        return None
+
+    def finish(self, output: Path, stopper: Stopper) -> RunSummary:
+        wall = self.wall()
+        status, code, message = "complete", EXIT_OK, ""
+        steps_done = self.last_step
+        final = self.checkpoints.final(self)
+        if self.diverged:
+            status, code, message = "diverged", EXIT_DIVERGED, self._divergence_message()
+            steps_done = self.energy_failure[0] if self.energy_failure is not None else self.sim.steps_done
+        elif stopper.signum is not None or self.last_step < self.steps:
+            status = "interrupted"
+            code = 128 + stopper.signum if stopper.signum is not None else EXIT_STOPPED
+            cause = signal.Signals(stopper.signum).name if stopper.signum is not None else "a stop request"
+            taken = max(self.last_step, self.sim.steps_done if self.sim else 0)
+            when = f"last sample at t = {self.last_time:g}" if self.samples else "before the first sample"
+            message = f"interrupted by {cause} after {taken} of {self.steps} steps ({when})"
+            steps_done = final.steps_done if final is not None else self.last_step
+        self.sink.close(status, steps_done=steps_done, wall_time_s=wall, message=message, final=final)
+        return RunSummary(
+            name=self.scenario.name, output=output, status=status, exit_code=code, steps_requested=self.steps,
+            steps_done=steps_done, samples=self.samples, end_time=self.last_time, wall_time_s=wall,
+            max_abs_energy_error=self.max_err if self.samples else math.nan,
+            threads=int(self.sim.threads_used) if self.sim else 0, message=message,
+            resumable=status == "interrupted" and final is not None)
+
+    def _divergence_message(self) -> str:
+        if self.energy_failure is not None:
+            step, when, energy = self.energy_failure
+            last = (f"the last finite sample is at t = {self.last_time:g} (step {self.last_step})" if self.samples
+                    else "no sample was finite")
+            return (f"the energy became non-finite (E = {energy:g}) at t = {when:g} (step {step}) while the state "
+                    f"was still finite: a product of masses, velocities and positions overflowed float64; {last}. "
+                    "Try units in which these numbers are smaller, softening, or a smaller dt")
+        bad = self.sim.non_finite_bodies()
+        names = ", ".join(self.scenario.names[i] for i in bad[:10])
+        if len(bad) > 10:
+            names += f" and {len(bad) - 10} more"
+        return (f"the state became non-finite between t = {self.last_time:g} (step {self.last_step}, the last "
+                f"finite sample) and t = {self.sim.time:g} (step {self.sim.steps_done}); non-finite bodies: "
+                f"{names}. Try a smaller dt, softening, or a higher-order integrator")
+
+
+
+def run_failure(exc: OSError, output: Path, existed: bool, where: str, kept: Checkpoint | None) -> OutputWriteError:
+    """The one-line error of a run ended by an I/O error: the cause, where, and what is on disk."""
+    from orbitsim.io.h5safe import io_failure
+
+    failed = f" while writing {exc.filename}" if getattr(exc, "filename", None) else ""
+    before = f"{output} is unchanged" if existed else f"no trace was written at {output}"
+    if kept is not None:
+        after = (f"the run can be resumed from its checkpoint at step {kept.steps_done}: fix the cause (free some "
+                 f"space), then `orbitsim resume {output}`")
+    else:
+        after = "nothing is left behind"
+    return io_failure(exc, f"{output}: {{reason}}{failed}; the run stopped {where}; {before}, and {after}",
+                      getattr(exc, "filename", "") or "")
