@@ -8,22 +8,27 @@ The jitted ``run`` of an integrator writes samples into the :class:`SampleBuffer
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from orbitsim.integrators.base import SCALAR_COLUMNS
+from orbitsim.io.schema import NEAR_ZERO_ENERGY, energy_scale
 
 if TYPE_CHECKING:
     from orbitsim.simulation import Simulation
 
-__all__ = ["SampleBuffers", "SampleChunk", "SimulationResult", "collect_result", "relative_energy_error"]
-
+__all__ = ["NEAR_ZERO_ENERGY", "SampleBuffers", "SampleChunk", "SimulationResult", "collect_result", "energy_scale",
+           "relative_energy_error"]
 
 @dataclass
 class SampleChunk:
-    """Consecutive samples of a run; ``positions``/``velocities`` are (k, N, 3) or None."""
+    """Consecutive samples of a run; ``positions``/``velocities`` are (k, N, 3) or None.
+
+    ``extra`` holds further per-sample series by trace dataset name, each with k rows: a run with
+    events adds ``energy_offset``, a run recording elements ``elements/a``, ... (:mod:`orbitsim.io.trace`).
+    """
 
     time: np.ndarray
     step: np.ndarray
@@ -33,25 +38,36 @@ class SampleChunk:
     angular_momentum: np.ndarray
     positions: np.ndarray | None
     velocities: np.ndarray | None
+    extra: dict[str, np.ndarray] | None = None
 
     @property
     def energy(self) -> np.ndarray:
         """Total energy T + U of each sample."""
         return self.kinetic + self.potential
 
+    @property
+    def conserved_energy(self) -> np.ndarray:
+        """E + the energy events took out (merges, removals): what the integrator conserves."""
+        offset = (self.extra or {}).get("energy_offset")
+        return self.energy if offset is None else self.energy + offset
+
     def __len__(self) -> int:
         return int(self.time.shape[0])
 
     def head(self, k: int) -> SampleChunk:
         """The first ``k`` samples (views)."""
-        return SampleChunk(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name)[:k]
-                              for f in fields(self)})
+        def head(value: Any) -> Any:
+            if isinstance(value, dict):
+                return {name: arr[:k] for name, arr in value.items()}
+            return None if value is None else value[:k]
+
+        return SampleChunk(**{f.name: head(getattr(self, f.name)) for f in fields(self)})
 
     def finite_energy_head(self) -> tuple[SampleChunk, np.ndarray, int | None]:
         """The samples before the first whose energy T + U is not finite, their energies, and that
         sample's index (None when every energy is finite, and the chunk is returned whole)."""
         with np.errstate(all="ignore"):  # inf + -inf is what is looked for: no RuntimeWarning on stderr
-            energy = self.energy
+            energy = self.conserved_energy
         finite = np.isfinite(energy)
         if finite.all():
             return self, energy, None
@@ -63,8 +79,9 @@ class SampleChunk:
 class SimulationResult:
     """Everything a finished (or stopped) run produced, as numpy arrays.
 
-    ``energy_error`` is (E - E0) / |E0| (or E - E0 when E0 == 0). ``status`` is ``complete``,
-    ``diverged`` or ``interrupted``.
+    ``energy_error`` is (E + offset - E0) / :func:`energy_scale` (|E0| for any bound system).
+    ``status`` is ``complete``, ``diverged``, ``halted`` (an event the run was told to stop at)
+    or ``interrupted``. ``energy_offset`` and ``events`` are set for a run with events.
     """
 
     integrator: str
@@ -87,6 +104,8 @@ class SimulationResult:
     status: str
     message: str
     wall_time_s: float
+    energy_offset: np.ndarray | None = None
+    events: list[Any] = field(default_factory=list)
 
     @property
     def max_abs_energy_error(self) -> float:
@@ -94,9 +113,10 @@ class SimulationResult:
         return float(np.max(np.abs(self.energy_error))) if self.energy_error.size else math.nan
 
 
-def relative_energy_error(energy: np.ndarray, e0: float) -> np.ndarray:
-    """(E - E0) / |E0|, or E - E0 when E0 is exactly zero."""
-    scale = abs(e0) if e0 != 0.0 else 1.0
+def relative_energy_error(energy: np.ndarray, e0: float, scale: float | None = None) -> np.ndarray:
+    """(E - E0) / ``scale``; ``scale`` defaults to |E0| (1 when E0 is exactly zero)."""
+    if scale is None:
+        scale = abs(e0) if e0 != 0.0 else 1.0
     return (np.asarray(energy) - e0) / scale
 
 
@@ -139,8 +159,15 @@ def collect_result(sim: Simulation, parts: list[SampleChunk], record_positions: 
     kinetic = cat("kinetic", ())
     potential = cat("potential", ())
     energy = kinetic + potential
+    watcher = sim.watcher
+    offset = np.concatenate([p.extra["energy_offset"] for p in parts]) if watcher and parts else None
+    conserved = energy if offset is None else energy + offset
     e0 = float(energy[0]) if energy.size else 0.0
+    scale = energy_scale(float(kinetic[0]), float(potential[0]), e0) if energy.size else 1.0
     final_pos, final_vel = sim.state()
+    n = sim.n if watcher is None else watcher.n0
+    if watcher is not None and n != sim.n:
+        final_pos, final_vel = watcher.to_scenario_bodies(final_pos), watcher.to_scenario_bodies(final_vel)
     return SimulationResult(
         integrator=sim.spec.name,
         dt=sim.dt,
@@ -151,17 +178,19 @@ def collect_result(sim: Simulation, parts: list[SampleChunk], record_positions: 
         kinetic=kinetic,
         potential=potential,
         energy=energy,
-        energy_error=relative_energy_error(energy, e0),
+        energy_error=relative_energy_error(conserved, e0, scale),
         momentum=cat("momentum", (3,)),
         angular_momentum=cat("angular_momentum", (3,)),
-        positions=cat("positions", (sim.n, 3)) if record_positions else None,
-        velocities=cat("velocities", (sim.n, 3)) if record_positions else None,
+        positions=cat("positions", (n, 3)) if record_positions else None,
+        velocities=cat("velocities", (n, 3)) if record_positions else None,
         final_positions=final_pos,
         final_velocities=final_vel,
         steps_done=sim.steps_done,
-        status="diverged" if sim.diverged else "complete",
+        status="diverged" if sim.diverged else "halted" if sim.halted is not None else "complete",
         message=_divergence_message(sim, parts) if sim.diverged else "",
         wall_time_s=wall,
+        energy_offset=offset,
+        events=list(watcher.outcome().events) if watcher is not None else [],
     )
 
 

@@ -5,8 +5,9 @@ signal handling, and hands the rest to :class:`RunLoop`; this module holds what 
 the first jitted call and the closed trace, and what a run that ended by an I/O error reports
 (:func:`run_failure`).
 
-Exit codes (:attr:`RunSummary.exit_code`): 0 complete, 3 diverged, 128 + signal number when
-interrupted by a signal (130 SIGINT, 143 SIGTERM), 1 when stopped by ``stop()``.
+Exit codes (:attr:`RunSummary.exit_code`): 0 complete, 3 diverged, 6 halted at an event the
+scenario asked to halt on, 128 + signal number when interrupted by a signal (130 SIGINT, 143
+SIGTERM), 1 when stopped by ``stop()``.
 """
 
 from __future__ import annotations
@@ -32,11 +33,12 @@ if TYPE_CHECKING:
     from orbitsim.scenario import Scenario
     from orbitsim.simulation import SampleChunk, Simulation
 
-__all__ = ["EXIT_DIVERGED", "EXIT_OK", "EXIT_STOPPED", "RunLoop", "RunSummary", "run_failure"]
+__all__ = ["EXIT_DIVERGED", "EXIT_HALTED", "EXIT_OK", "EXIT_STOPPED", "RunLoop", "RunSummary", "run_failure"]
 
 EXIT_OK = 0
 EXIT_STOPPED = 1
 EXIT_DIVERGED = 3
+EXIT_HALTED = 6
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,7 @@ class RunSummary:
     threads: int
     message: str = ""
     resumable: bool = False
+    events: str = ""
 
     @property
     def steps_per_s(self) -> float:
@@ -79,6 +82,7 @@ class RunLoop:
         self.last_time = math.nan
         self.last_step = 0
         self.e0: float | None = None
+        self.scale = math.nan  # what |dE| is divided by (orbitsim.results.energy_scale), from the first sample
         self.max_err = 0.0
         self.energy_failure: tuple[int, float, float] | None = None  # step, time, energy of the first bad sample
         self.safe = False  # True where the state agrees with the samples written: a checkpoint may be taken
@@ -93,6 +97,8 @@ class RunLoop:
         if self.samples:
             self.last_time, self.last_step = ckpt.last_sample_time, ckpt.last_sample_step
             self.e0, self.max_err = ckpt.E0, ckpt.max_abs_energy_error
+            # A checkpoint written before the scale was stored: it was |E0| then.
+            self.scale = ckpt.energy_scale if math.isfinite(ckpt.energy_scale) else abs(ckpt.E0) or 1.0
 
     @property
     def diverged(self) -> bool:
@@ -133,12 +139,19 @@ class RunLoop:
         from orbitsim.simulation import Simulation
 
         sc = self.scenario
-        pos, vel = sc.positions, sc.velocities
+        masses, pos, vel, radii = sc.masses, sc.positions, sc.velocities, sc.radii
         if self.start_point is not None:
             state = self.start_point.checkpoint.state
             pos, vel = state.pos.T, state.vel.T
-        sim = Simulation(sc.masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.dt, sc.G, sc.softening, 0.0,
-                         threads, dict(sc.integrator_settings))
+            if state.events:  # merges or removals may have changed the bodies: continue with those left
+                masses = state.events["final_masses"][state.events["alive"]]
+                radii = state.events["radii"]
+        primary: str | int | None = None
+        if sc.record_elements:
+            primary = sc.elements_primary
+            primary = sc.names.index(primary) if primary in sc.names else primary
+        sim = Simulation(masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.dt, sc.G, sc.softening, 0.0,
+                         threads, dict(sc.integrator_settings), events=sc.events, radii=radii, elements=primary)
         if self.start_point is not None:
             restore_state(sim, self.start_point.checkpoint.state)
         return sim
@@ -148,7 +161,10 @@ class RunLoop:
         if len(chunk):
             self.sink.append(chunk)
             if self.e0 is None:
+                from orbitsim.results import energy_scale
+
                 self.e0 = float(energy[0])
+                self.scale = energy_scale(float(chunk.kinetic[0]), float(chunk.potential[0]), self.e0)
             err = self._energy_error(energy)
             if not err <= self.max_err:  # not max(): max(0.0, nan) is 0.0, a nan would read as perfect
                 self.max_err = err
@@ -180,7 +196,7 @@ class RunLoop:
         from orbitsim.results import relative_energy_error
 
         with np.errstate(over="ignore", invalid="ignore"):  # an overflow gives inf, honestly, not a warning
-            return float(np.max(np.abs(relative_energy_error(energy, self.e0))))
+            return float(np.max(np.abs(relative_energy_error(energy, self.e0, self.scale))))
 
     def wall(self) -> float:
         """Wall time of the run, the parts before any resume included."""
@@ -215,9 +231,16 @@ class RunLoop:
         status, code, message = "complete", EXIT_OK, ""
         steps_done = self.last_step
         final = self.checkpoints.final(self)
+        watcher = self.sim.watcher if self.sim is not None else None
         if self.diverged:
             status, code, message = "diverged", EXIT_DIVERGED, self._divergence_message()
             steps_done = self.energy_failure[0] if self.energy_failure is not None else self.sim.steps_done
+        elif watcher is not None and watcher.halted is not None and stopper.signum is None:
+            from orbitsim.events.log import describe
+
+            status, code, steps_done = "halted", EXIT_HALTED, self.sim.steps_done
+            message = (f"halted at t = {watcher.halted.time:.10g} (step {watcher.halted.step}) as events: asked: "
+                       f"{describe(watcher.halted, self.scenario.names)}")
         elif stopper.signum is not None or self.last_step < self.steps:
             status = "interrupted"
             code = 128 + stopper.signum if stopper.signum is not None else EXIT_STOPPED
@@ -226,13 +249,16 @@ class RunLoop:
             when = f"last sample at t = {self.last_time:g}" if self.samples else "before the first sample"
             message = f"interrupted by {cause} after {taken} of {self.steps} steps ({when})"
             steps_done = final.steps_done if final is not None else self.last_step
-        self.sink.close(status, steps_done=steps_done, wall_time_s=wall, message=message, final=final)
+        outcome = watcher.outcome(final_run=status != "interrupted") if watcher is not None else None
+        self.sink.close(status, steps_done=steps_done, wall_time_s=wall, message=message, final=final,
+                        events=outcome)
         return RunSummary(
             name=self.scenario.name, output=output, status=status, exit_code=code, steps_requested=self.steps,
             steps_done=steps_done, samples=self.samples, end_time=self.last_time, wall_time_s=wall,
             max_abs_energy_error=self.max_err if self.samples else math.nan,
             threads=int(self.sim.threads_used) if self.sim else 0, message=message,
-            resumable=status == "interrupted" and final is not None)
+            resumable=status == "interrupted" and final is not None,
+            events=outcome.summary(self.scenario.names) if outcome is not None else "")
 
     def _divergence_message(self) -> str:
         if self.energy_failure is not None:

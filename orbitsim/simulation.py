@@ -83,6 +83,18 @@ class Simulation:
         Time of step 0; sample n is at ``t0 + n * dt``.
     threads : int, optional
         Numba threads for the parallel kernels (default: ``NUMBA_NUM_THREADS``).
+    settings : dict
+        Integrator settings (its module's ``SETTINGS``).
+    events : EventsConfig, optional
+        Watch for collisions, close encounters, escapes and unresolved steps after every step
+        (:mod:`orbitsim.events`); without it the run is the plain fixed-dt loop.
+    radii : (N,) array, optional
+        Body radii for collisions (default 0: point masses never touch).
+    elements : str or int, optional
+        Record every body's osculating orbital elements at every sample, relative to this
+        primary (``"heaviest"``, ``"jacobi"`` or a body index; see
+        :func:`orbitsim.physics.orbital_elements.osculating_elements`): the chunks then carry
+        ``extra["elements/a"]``, ... (S, N).
     """
 
     masses: Any
@@ -95,12 +107,13 @@ class Simulation:
     t0: float = 0.0
     threads: int | None = None
     settings: dict[str, Any] = field(default_factory=dict)
+    events: Any = None
+    radii: Any = None
+    elements: str | int | None = None
 
     def __post_init__(self) -> None:
         from orbitsim._jit import set_num_threads
         from orbitsim.integrators.registry import get_module
-        from orbitsim.physics.diagnostics import potential_rows_scratch
-        from orbitsim.physics.gravity import accelerations, make_force
 
         if not (math.isfinite(self.dt) and self.dt != 0.0):
             raise SimulationError(f"dt must be a finite non-zero number, got {self.dt}")
@@ -110,9 +123,38 @@ class Simulation:
             raise SimulationError(f"G must be > 0, got {self.G}")
         self._module = get_module(self.integrator)
         self.spec: IntegratorSpec = self._module.SPEC
-        self.m, self.pos, self.vel = _as_state(self.masses, self.positions, self.velocities)
-        self.n = int(self.m.shape[0])
         self.threads_used = set_num_threads(self.threads)
+        self.replace_bodies(*_as_state(self.masses, self.positions, self.velocities))
+        self.steps_done = 0
+        self.diverged = False
+        self.watcher = None
+        if self.events is not None:
+            from orbitsim.events.driver import Watcher
+
+            self.watcher = Watcher(self, self.events, self.radii)
+
+    @property
+    def module(self) -> Any:
+        """The integrator's module (its ``run``, ``run_watched``, ``step``, ``SPEC``)."""
+        return self._module
+
+    @property
+    def halted(self) -> Any:
+        """The event the run stopped at (``halt`` in the scenario's ``events:``), or None."""
+        return self.watcher.halted if self.watcher is not None else None
+
+    def replace_bodies(self, m: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
+        """Go on with these bodies: (N,) masses, (3, N) positions and velocities, used as given.
+
+        The force context and the integrator's work are made for them and the accelerations
+        evaluated at ``pos``, exactly as for a new simulation: this is how a run starts, and how it
+        continues after a merge or a removal (:mod:`orbitsim.events.driver`).
+        """
+        from orbitsim.physics.diagnostics import potential_rows_scratch
+        from orbitsim.physics.gravity import accelerations, make_force
+
+        self.m, self.pos, self.vel = (np.ascontiguousarray(a, dtype=np.float64) for a in (m, pos, vel))
+        self.n = int(self.m.shape[0])
         self.force = make_force(self.G, self.softening, self.n)
         make_work = getattr(self._module, "make_work", None)
         self.work = (
@@ -120,10 +162,15 @@ class Simulation:
         )
         self.acc = np.zeros((3, self.n))
         self.rows = potential_rows_scratch(self.n)
-        self.steps_done = 0
-        self.diverged = False
         G, eps2, slabs, bounds = self.force
         accelerations(self.pos, self.m, G, eps2, self.acc, slabs, bounds)
+
+    def total_energy(self) -> float:
+        """Kinetic plus potential energy of the current state."""
+        from orbitsim.physics.diagnostics import kinetic_energy, potential_energy
+
+        return float(kinetic_energy(self.vel, self.m)) + float(
+            potential_energy(self.pos, self.m, self.force[0], self.force[1], self.rows))
 
     @property
     def time(self) -> float:
@@ -154,6 +201,8 @@ class Simulation:
         ``steps_done`` has been yielded), which is what a checkpoint needs.
         """
         plan = sample_steps if isinstance(sample_steps, SamplePlan) else ExplicitPlan(sample_steps)
+        keep_positions = record_positions
+        record_positions = record_positions or self.elements is not None  # elements come from the states
         per_sample = (2 * 3 * self.n * 8 if record_positions else 0) + 80
         targets = _TargetWindow(plan, max(1, MAX_BUFFER_BYTES // per_sample))
         if targets.pending.size == 0:
@@ -164,23 +213,55 @@ class Simulation:
         buffers = SampleBuffers(targets.max_samples(), self.n, record_positions)
         budget = max(1, int(2e5 // max(1, self.n * self.n * self.spec.force_evals)))
         state = (self.pos, self.vel, self.acc, self.m)
+        watcher = self.watcher
         while targets.pending.size:
             call_targets, record = targets.plan_call(self.steps_done, budget)
             out = buffers.views(self.rows)
             start = time.perf_counter()
-            written, n_done, finite = self._module.run(
-                state, self.force, self.dt, self.work, self.t0, self.steps_done, call_targets, record, out
-            )
+            if watcher is None:
+                written, n_done, finite = self._module.run(
+                    state, self.force, self.dt, self.work, self.t0, self.steps_done, call_targets, record, out
+                )
+            else:
+                written, n_done, finite, acted = watcher.call(self, call_targets, record, out)
             elapsed = time.perf_counter() - start
             self.steps_done = int(n_done)
             # Every recorded target is one sample, so the samples written are the targets consumed.
             targets.consume(int(written))
-            if written or (yield_empty and finite):
-                yield buffers.chunk(int(written))
+            chunk = buffers.chunk(int(written)) if written or (yield_empty and finite) else None
+            if chunk is not None and self.elements is not None:
+                chunk = self._with_elements(watcher.expand(chunk) if watcher is not None else chunk, keep_positions)
+            elif chunk is not None and watcher is not None:
+                chunk = watcher.expand(chunk)
+            if watcher is not None:
+                n_before = self.n
+                watcher.after_call(self, acted)
+                if self.n != n_before:  # a merge or a removal: new arrays, sized for the bodies left
+                    state = (self.pos, self.vel, self.acc, self.m)
+                    buffers = SampleBuffers(targets.max_samples(), self.n, record_positions)
+            if chunk is not None:
+                yield chunk
             if not finite:
                 self.diverged = True
                 return
+            if watcher is not None and watcher.halted is not None:
+                return
             budget = _next_budget(budget, elapsed)
+
+    def _with_elements(self, chunk: SampleChunk, keep_positions: bool) -> SampleChunk:
+        """The chunk with every body's elements in ``extra`` (NaN for bodies out of the run), its
+        states dropped unless they were asked for."""
+        from dataclasses import replace
+
+        from orbitsim.physics.orbital_elements import osculating_elements
+
+        masses = self.m if self.watcher is None else self.watcher.scenario_masses()
+        elements = osculating_elements(masses, chunk.positions, chunk.velocities, self.G, self.elements)
+        extra = dict(chunk.extra or {})
+        extra.update({f"elements/{name}": values for name, values in elements.items()})
+        if keep_positions:
+            return replace(chunk, extra=extra)
+        return replace(chunk, extra=extra, positions=None, velocities=None)
 
     def failure_detail(self) -> str | None:
         """Why the scheme failed, when it knows (e.g. wisdom_holman: which body's Kepler solve)."""

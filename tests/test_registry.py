@@ -92,10 +92,12 @@ def test_documented_spellings() -> None:
 
 
 @pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
-def test_every_module_has_step_and_run(spec: IntegratorSpec) -> None:
+def test_every_module_has_step_run_and_run_watched(spec: IntegratorSpec) -> None:
+    """``run_watched`` is what a run with ``events:`` calls (orbitsim.events.kernels)."""
     module = get_module(spec.name)
     assert callable(module.step)
     assert callable(module.run)
+    assert callable(module.run_watched)
 
 
 @pytest.mark.parametrize("n", [3, 60])  # both force paths: all pairs (N <= 48) and the third-law rows

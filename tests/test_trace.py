@@ -89,12 +89,17 @@ def test_energy_error(tmp_path: Path) -> None:
     np.testing.assert_array_equal(tr.energy_error, (e + 2.0) / 2.0)
 
 
-def test_energy_error_absolute_when_e0_is_zero(tmp_path: Path) -> None:
+def test_energy_error_relative_to_t_plus_u_when_e0_is_zero(tmp_path: Path) -> None:
+    """E0 = 0 cannot be divided by: the error is relative to T0 + |U0| (orbitsim.io.schema.energy_scale)."""
     path = tmp_path / "e0.h5"
     e = np.array([0.0, 1e-3, -2e-3])
+    chunk = make_chunk(np.random.default_rng(3), 0, 3, positions=False, energy=e)
     with writer(path, positions=False) as w:
-        w.append(make_chunk(np.random.default_rng(3), 0, 3, positions=False, energy=e))
-    np.testing.assert_array_equal(read_trace(path).energy_error, e)
+        w.append(chunk)
+    size = chunk.kinetic[0] + abs(chunk.potential[0])
+    tr = read_trace(path)
+    np.testing.assert_array_equal(tr.energy_error, e / size)
+    assert tr.attrs["energy_scale"] == size
 
 
 def test_target_appears_only_at_close(tmp_path: Path) -> None:

@@ -239,7 +239,10 @@ def _from_checkpoint_file(output: Path, trace: TraceState | None, foreign: str, 
     if output.exists() and not (same_run or ckpt.force):
         why = f" ({foreign})" if foreign else ""
         raise CheckpointError(f"{output}: exists and is not this run's trace{why}; move it away, then resume")
-    journal = Journal(journal_path(output), journal_dtype(stored.n_bodies, bool(stored.record_positions)),
+    from orbitsim.checkpoint.sinks import scenario_series
+
+    series = scenario_series(stored)[0]
+    journal = Journal(journal_path(output), journal_dtype(stored.n_bodies, bool(stored.record_positions), series),
                       keep_bytes=ckpt.journal_bytes, crc32=ckpt.journal_crc32)
     if journal.records != ckpt.samples_written:
         journal.close()
@@ -274,6 +277,9 @@ def _from_trace(output: Path, trace: TraceState, scenario: Scenario | None, inte
         return Continuation(output, note=_complete_note(output, trace))
     if status == "diverged":
         raise CheckpointError(f"{output}: the run diverged; there is no finite state to continue from")
+    if status == "halted":
+        raise CheckpointError(f"{output}: the run halted at an event, as its events: section asked "
+                              f"({trace.attrs.get('message', '')}); there is nothing to resume")
     if status != "interrupted":
         raise CheckpointError(f"{output}: is a partial trace (status {status!r}), not a resumable run")
     if trace.checkpoint is None:

@@ -105,6 +105,8 @@ def _trace_verdict(path: Path, status: Any, ckpt: Checkpoint | None) -> str:
         if ckpt is None:
             return "no: complete, without a final state to extend from"
         return f"no: complete; extend it with `orbitsim run --from {path} --steps N`"
+    if status == "halted":
+        return "no: the run halted at an event its events: section asked to halt on"
     if status == "diverged":
         return "no: the run diverged"
     if status == "running":

@@ -21,6 +21,7 @@ from orbitsim.io.checkpoint import (
 )
 
 if TYPE_CHECKING:
+    from orbitsim.events.log import RunEvents
     from orbitsim.io.trace import TraceWriter
     from orbitsim.scenario import Scenario
 
@@ -58,6 +59,7 @@ class StreamSink:
     def __init__(self, writer: TraceWriter) -> None:
         self.writer = writer
         self.record_positions = writer.record_positions
+        self.series = writer.series
 
     @property
     def samples_written(self) -> int:
@@ -76,10 +78,13 @@ class StreamSink:
         """Nothing to do: without ``output.checkpoint`` only the final state is kept."""
 
     def close(self, status: str, *, steps_done: int, wall_time_s: float, message: str,
-              final: Checkpoint | None) -> Path:
-        """Write the final state (when given) as the ``checkpoint`` group and finish the trace."""
+              final: Checkpoint | None, events: RunEvents | None = None) -> Path:
+        """Write the final state (when given) as the ``checkpoint`` group, the events and the
+        bodies' fates (a run with events), and finish the trace."""
         if final is not None:
             add_checkpoint_group(self.writer, final)
+        if events is not None:
+            add_events(self.writer, events)
         return self.writer.close(status, steps_done=steps_done, wall_time_s=wall_time_s, message=message)
 
     def abort(self) -> None:
@@ -96,6 +101,7 @@ class JournalSink:
         self.output, self.journal = output, journal
         self.trace_args, self.overwrite = trace_args, overwrite
         self.record_positions = bool(trace_args["record_positions"])
+        self.series = dict(trace_args["extra_series"])
         self.published: Checkpoint | None = None
 
     @property
@@ -121,7 +127,7 @@ class JournalSink:
         self.published = ckpt
 
     def close(self, status: str, *, steps_done: int, wall_time_s: float, message: str,
-              final: Checkpoint | None) -> Path:
+              final: Checkpoint | None, events: RunEvents | None = None) -> Path:
         """Publish the final state, build the trace from the journal, then remove the side files.
 
         A kill while the trace is built leaves the final checkpoint, so ``orbitsim resume``
@@ -138,6 +144,8 @@ class JournalSink:
                 writer.append(chunk)
             if final is not None:
                 add_checkpoint_group(writer, final)
+            if events is not None:
+                add_events(writer, events)
             path = writer.close(status, steps_done=steps_done, wall_time_s=wall_time_s, message=message)
         except BaseException:
             writer.abort()
@@ -148,6 +156,29 @@ class JournalSink:
     def abort(self) -> None:
         """Leave nothing behind (an error before the first sample)."""
         remove_side_files(self.output, self.journal)
+
+
+def add_events(writer: TraceWriter, events: RunEvents) -> None:
+    """The trace's ``events`` table and the bodies' fates in ``bodies`` (docs/trace.md)."""
+    names = writer.names
+    writer.add_arrays("events", events.table(names))
+    writer.add_arrays("bodies", events.fates)
+
+
+def scenario_series(scenario: Scenario) -> tuple[dict[str, tuple[int, ...]], dict[str, dict[str, Any]]]:
+    """The per-sample series a scenario's trace holds beyond the standard ones, with their shapes,
+    and the attributes of their groups: ``energy_offset`` with events, ``elements/*`` with
+    ``output.elements`` (group attribute ``primary``)."""
+    from orbitsim.io.schema import ELEMENTS
+
+    series: dict[str, tuple[int, ...]] = {}
+    groups: dict[str, dict[str, Any]] = {}
+    if scenario.events is not None:
+        series["energy_offset"] = ()
+    if scenario.record_elements:
+        series.update({f"elements/{name}": (scenario.n_bodies,) for name in ELEMENTS})
+        groups["elements"] = {"primary": scenario.elements_primary}
+    return series, groups
 
 
 def add_checkpoint_group(writer: TraceWriter, ckpt: Checkpoint) -> None:
@@ -201,13 +232,15 @@ def open_sink(scenario: Scenario, output: Path, attrs: dict[str, Any], *, overwr
     """
     from orbitsim.io.trace import TraceWriter
 
+    series, groups = scenario_series(scenario)
     trace_args: dict[str, Any] = {"attrs": attrs, "names": list(scenario.names), "masses": scenario.masses,
-                                  "n_bodies": scenario.n_bodies, "record_positions": bool(scenario.record_positions)}
+                                  "n_bodies": scenario.n_bodies, "record_positions": bool(scenario.record_positions),
+                                  "extra_series": series, "group_attrs": groups}
     sink: StreamSink | JournalSink
     if start is not None and start.journal is not None:
         return JournalSink(output, start.journal, trace_args, overwrite)
     if scenario.checkpoints:
-        dtype = journal_dtype(scenario.n_bodies, bool(scenario.record_positions))
+        dtype = journal_dtype(scenario.n_bodies, bool(scenario.record_positions), series)
         sink = JournalSink(output, Journal(journal_path(output), dtype), trace_args, overwrite)
     else:
         sink = StreamSink(TraceWriter(output, overwrite=overwrite, **trace_args))
@@ -229,7 +262,7 @@ def copy_samples(path: Path, count: int, sink: Any) -> None:
             have = int(f["time"].shape[0])
             if have < count:
                 raise CheckpointError(f"{path}: damaged trace ({have} samples, its checkpoint needs {count})")
-            names = _COPIED + (("positions", "velocities") if sink.record_positions else ())
+            names = _COPIED + (("positions", "velocities") if sink.record_positions else ()) + tuple(sink.series)
             row_bytes = sum(8 * int(np.prod(f[name].shape[1:])) for name in names)
             block = max(1, _COPY_BLOCK_BYTES // row_bytes)
             for start in range(0, count, block):

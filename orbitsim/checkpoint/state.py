@@ -22,8 +22,9 @@ def capture_state(sim: Simulation) -> SimState:
     """Copies of everything ``sim`` continues from (see the module docstring, point 1)."""
     arrays: list[np.ndarray] = []
     layout = _flatten(sim.work, arrays)
+    events = sim.watcher.arrays() if sim.watcher is not None else {}
     return SimState(steps_done=int(sim.steps_done), pos=sim.pos.copy(), vel=sim.vel.copy(), acc=sim.acc.copy(),
-                    work=tuple(arrays), work_layout=layout_json(layout))
+                    work=tuple(arrays), work_layout=layout_json(layout), events=events)
 
 
 def _flatten(obj: Any, out: list[np.ndarray]) -> Any:
@@ -63,6 +64,10 @@ def restore_state(sim: Simulation, state: SimState) -> None:
     sim.vel[...] = state.vel
     sim.acc[...] = state.acc
     sim.steps_done = int(state.steps_done)
+    if (sim.watcher is not None) != bool(state.events):
+        raise CheckpointError("checkpoint and run differ in whether events are watched")
+    if sim.watcher is not None:
+        sim.watcher.restore(state.events)
 
 
 def _restore(obj: Any, layout: Any, arrays: Any) -> None:

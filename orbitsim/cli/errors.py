@@ -14,6 +14,7 @@ Exit codes
      what it had before, and only a resumable checkpoint is left beside it
 5    ``compare``: no pair disagrees, but agreement is not testable (a chaotic pair, or an
      unreliable reference)
+6    the run halted at an event the scenario asked to halt on (``events:``); the trace is kept
 130  interrupted by SIGINT (Ctrl-C); 143 by SIGTERM; the trace is kept
 ===  =====================================================================================
 
@@ -32,8 +33,8 @@ from typing import Any, NoReturn, TypeVar
 
 import click
 
-__all__ = ["EXIT_DIVERGED", "EXIT_FAILURE", "EXIT_IO", "EXIT_NOT_TESTABLE", "EXIT_OK", "EXIT_USAGE", "fail",
-           "reports_errors", "warn"]
+__all__ = ["EXIT_DIVERGED", "EXIT_FAILURE", "EXIT_HALTED", "EXIT_IO", "EXIT_NOT_TESTABLE", "EXIT_OK", "EXIT_USAGE",
+           "fail", "reports_errors", "warn"]
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -45,6 +46,7 @@ EXIT_IO = 4
 #: orbitsim or the pairing is wrong) so that a script can tell "wrong" from "this scenario cannot be
 #: checked this way", and non-zero so that it never reads as a pass.
 EXIT_NOT_TESTABLE = 5
+EXIT_HALTED = 6
 
 #: Errors that mean "fix your input": (module, class name).
 USER_ERRORS: tuple[tuple[str, str], ...] = (

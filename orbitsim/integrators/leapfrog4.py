@@ -8,6 +8,7 @@ coefficients as REBOUND's ``leapfrog`` with ``order = 4``.
 from __future__ import annotations
 
 from orbitsim._jit import jit
+from orbitsim.events.kernels import watched_run
 from orbitsim.integrators.base import IntegratorSpec
 from orbitsim.integrators.composition import LEAPFROG4_WEIGHTS, compose_dkd, drift_coefficients, run_dkd
 
@@ -39,3 +40,8 @@ def step(pos, vel, acc, m, force, dt, work):
 def run(state, force, dt, work, t0, n_done, targets, record, out):
     """Fixed-dt loop of :func:`step` (contract in :mod:`orbitsim.integrators.base`)."""
     return run_dkd(state, force, dt, work, t0, n_done, targets, record, out, DRIFTS, KICKS)
+
+@jit
+def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)

@@ -11,6 +11,7 @@ adjoint of explicit Euler's update order and the lesson's centre panel.
 from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
+from orbitsim.events.kernels import watched_run
 from orbitsim.integrators.base import IntegratorSpec, kick_drift, record_sample
 from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
 
@@ -66,3 +67,8 @@ def run(state, force, dt, work, t0, n_done, targets, record, out):
                 return written, n_done, False
             written += 1
     return written, n_done, True
+
+@jit
+def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)

@@ -61,6 +61,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim._jit import jit
+from orbitsim.events.kernels import watched_run
 from orbitsim.integrators.base import IntegratorSpec, record_sample
 from orbitsim.integrators.wh_correctors import CORRECTOR_STAGES, apply_corrector
 from orbitsim.integrators.wh_operators import (
@@ -320,6 +321,11 @@ def run(state, force, dt, work, t0, n_done, targets, record, out):
                 return written, n_done, False
             written += 1
     return written, n_done, True
+
+@jit
+def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 _STATE_SLOTS = {

@@ -99,7 +99,9 @@ def checkpoint_path(output: str | os.PathLike) -> Path:
 @dataclasses.dataclass(frozen=True, eq=False)
 class SimState:
     """The arrays a simulation continues from: (3, N) ``pos``, ``vel``, ``acc``, the flattened
-    ``work`` arrays with their nesting (JSON, see :func:`orbitsim.checkpoint.capture_state`)."""
+    ``work`` arrays with their nesting (JSON, see :func:`orbitsim.checkpoint.capture_state`), and,
+    for a run with events, the ``events`` arrays of its watcher by name (the bodies left, the open
+    encounters, the energy offset, the log: :meth:`orbitsim.events.driver.Watcher.arrays`)."""
 
     steps_done: int
     pos: np.ndarray
@@ -107,12 +109,17 @@ class SimState:
     acc: np.ndarray
     work: tuple[np.ndarray, ...]
     work_layout: str
+    events: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def digest(self) -> str:
         """SHA-256 over the step count, the layout and every array's dtype, shape and bytes."""
         h = hashlib.sha256(f"{self.steps_done}|{self.work_layout}".encode())
+        named = [(name, self.events[name]) for name in sorted(self.events)]
         for arr in (self.pos, self.vel, self.acc, *self.work):
             h.update(f"{arr.dtype.str}{arr.shape}".encode())
+            h.update(np.ascontiguousarray(arr).tobytes())
+        for name, arr in named:  # absent for a run without events: its digest is unchanged
+            h.update(f"{name}{arr.dtype.str}{arr.shape}".encode())
             h.update(np.ascontiguousarray(arr).tobytes())
         return h.hexdigest()
 
@@ -142,6 +149,7 @@ class Checkpoint:
     resumes: int = 0
     force: bool = False
     E0: float = float("nan")
+    energy_scale: float = float("nan")
     max_abs_energy_error: float = float("nan")
     last_sample_time: float = float("nan")
     wall_time_s: float = 0.0
@@ -158,6 +166,7 @@ def state_arrays(state: SimState) -> dict[str, np.ndarray]:
     """The datasets of a checkpoint, by name (``work/0000``, ... for the work arrays)."""
     arrays = {"pos": state.pos, "vel": state.vel, "acc": state.acc}
     arrays.update({f"work/{i:04d}": arr for i, arr in enumerate(state.work)})
+    arrays.update({f"events/{name}": arr for name, arr in state.events.items()})
     return arrays
 
 
@@ -172,6 +181,7 @@ def write_checkpoint_group(group: h5py.Group, ckpt: Checkpoint) -> None:
         integrator=ckpt.integrator, scenario_sha256=ckpt.scenario_sha256, scenario_name=ckpt.scenario_name,
         scenario_source=ckpt.scenario_source, work_layout=ckpt.state.work_layout,
         state_sha256=ckpt.state.digest(), force=bool(ckpt.force), E0=float(ckpt.E0),
+        energy_scale=float(ckpt.energy_scale),
         max_abs_energy_error=float(ckpt.max_abs_energy_error), last_sample_time=float(ckpt.last_sample_time),
         wall_time_s=float(ckpt.wall_time_s), written_at=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         writer_pid=os.getpid(), writer_host=socket.gethostname(), orbitsim_version=__version__)
@@ -193,14 +203,18 @@ def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "") -> 
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
         work_group = group["work"]
         work = tuple(work_group[name][()] for name in sorted(work_group))
+        events: dict[str, np.ndarray] = {}
+        if "events" in group:
+            group["events"].visititems(
+                lambda name, obj: events.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
         state = SimState(steps_done=int(attrs["steps_done"]), pos=group["pos"][()], vel=group["vel"][()],
-                         acc=group["acc"][()], work=work, work_layout=str(attrs["work_layout"]))
+                         acc=group["acc"][()], work=work, work_layout=str(attrs["work_layout"]), events=events)
         counters = {name: int(attrs[name]) for name in _COUNTERS if name != "steps_done"}
         ckpt = Checkpoint(
             state=state, integrator=str(attrs["integrator"]), scenario_sha256=str(attrs["scenario_sha256"]),
             scenario=str(attrs.get("scenario", scenario)), scenario_name=str(attrs.get("scenario_name", "")),
             scenario_source=str(attrs.get("scenario_source", "")),
-            force=bool(attrs["force"]), E0=float(attrs["E0"]),
+            force=bool(attrs["force"]), E0=float(attrs["E0"]), energy_scale=float(attrs.get("energy_scale", np.nan)),
             max_abs_energy_error=float(attrs["max_abs_energy_error"]),
             last_sample_time=float(attrs["last_sample_time"]), wall_time_s=float(attrs["wall_time_s"]),
             written_at=str(attrs.get("written_at", "")),

@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import os
 import zlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -31,12 +31,15 @@ def journal_path(output: str | os.PathLike) -> Path:
     return Path(f"{os.fspath(output)}.journal")
 
 
-def journal_dtype(n_bodies: int, record_positions: bool) -> np.dtype:
-    """One journal record: a sample's time, step, energies, momenta and, optionally, its state."""
+def journal_dtype(n_bodies: int, record_positions: bool, extra: Mapping[str, tuple[int, ...]] | None = None,
+                  ) -> np.dtype:
+    """One journal record: a sample's time, step, energies, momenta and, optionally, its state and
+    the ``extra`` series of the trace (their names and per-sample shapes: ``energy_offset``, ...)."""
     fields: list[tuple[Any, ...]] = [("time", "<f8"), ("step", "<i8"), ("kinetic", "<f8"), ("potential", "<f8"),
                                      ("momentum", "<f8", (3,)), ("angular_momentum", "<f8", (3,))]
     if record_positions:
         fields += [("positions", "<f8", (n_bodies, 3)), ("velocities", "<f8", (n_bodies, 3))]
+    fields += [(name, "<f8", tuple(shape)) for name, shape in (extra or {}).items()]
     return np.dtype(fields)
 
 
@@ -91,8 +94,9 @@ class Journal:
     def append(self, chunk: Any) -> None:
         """Append the samples of a chunk (``time``, ``step``, ... attributes, as a SampleChunk)."""
         rec = np.empty(len(chunk.time), dtype=self.dtype)
+        extra = getattr(chunk, "extra", None) or {}
         for name in self.dtype.names:
-            rec[name] = getattr(chunk, name)
+            rec[name] = extra[name] if name in extra else getattr(chunk, name)
         data = memoryview(rec.tobytes())
         try:
             written = 0
@@ -160,11 +164,15 @@ def _check_prefix(fh: Any, path: Path, keep_bytes: int, crc32: int) -> None:
         raise CheckpointError(f"{path}: damaged journal (its samples do not match the checkpoint's CRC-32)")
 
 
+#: Fields of a chunk itself; anything else in a record is one of its ``extra`` series.
+_CHUNK_FIELDS = ("time", "step", "kinetic", "potential", "momentum", "angular_momentum", "positions", "velocities")
+
+
 def as_chunk(arrays: dict[str, np.ndarray]) -> SimpleNamespace:
     """A chunk-like object for :meth:`orbitsim.io.trace.TraceWriter.append` (energy = T + U)."""
-    arrays.setdefault("positions", None)
-    arrays.setdefault("velocities", None)
-    return SimpleNamespace(energy=arrays["kinetic"] + arrays["potential"], **arrays)
+    fields = {name: arrays.get(name) for name in _CHUNK_FIELDS}
+    extra = {name: arr for name, arr in arrays.items() if name not in _CHUNK_FIELDS}
+    return SimpleNamespace(energy=arrays["kinetic"] + arrays["potential"], extra=extra, **fields)
 
 
 def _lock(fh: Any, path: Path) -> None:

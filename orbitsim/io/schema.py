@@ -7,19 +7,41 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["BODY_ARRAYS", "FINAL_STATUSES", "RESERVED_ATTRS", "SCALARS", "TRACE_FORMAT", "TRACE_VERSION", "VECTORS",
-           "CheckpointError", "OutputBusyError", "OutputError", "OutputWriteError", "TraceError", "py_value"]
+__all__ = ["BODY_ARRAYS", "ELEMENTS", "FINAL_STATUSES", "NEAR_ZERO_ENERGY", "RESERVED_ATTRS", "SCALARS", "TRACE_FORMAT",
+           "TRACE_VERSION", "VECTORS", "CheckpointError", "OutputBusyError", "OutputError", "OutputWriteError",
+           "TraceError", "energy_scale", "py_value"]
 
 TRACE_FORMAT = "orbitsim.trace"
 TRACE_VERSION = 1
-FINAL_STATUSES = ("complete", "interrupted", "diverged")
+FINAL_STATUSES = ("complete", "interrupted", "diverged", "halted")
 #: Root attributes only the writer sets.
-RESERVED_ATTRS = frozenset({"format", "format_version", "E0"})
+RESERVED_ATTRS = frozenset({"format", "format_version", "E0", "energy_scale"})
 
 # Per-sample datasets, grouped by trailing shape: (), (3,), (N, 3).
 SCALARS = ("time", "step", "kinetic", "potential", "energy", "energy_error")
 VECTORS = ("momentum", "angular_momentum")
 BODY_ARRAYS = ("positions", "velocities")
+#: Osculating elements a run records with ``output.elements``: datasets ``elements/<name>`` (S, N).
+ELEMENTS = ("a", "e", "inc", "Omega", "omega", "f", "M")
+
+
+#: |E0| below this fraction of T0 + |U0| counts as zero: the energy error is then measured against
+#: T0 + |U0| instead, which cannot vanish. A bound system in virial equilibrium has |E0| = (T0 +
+#: |U0|) / 3, and every bundled scenario is far above this, so their errors are unchanged; a
+#: nearly parabolic pair would otherwise divide by a number that makes any error look huge, or
+#: (E0 -> 0 by round-off) any error look like anything at all.
+NEAR_ZERO_ENERGY = 1e-3
+
+
+def energy_scale(kinetic0: float, potential0: float, e0: float | None = None) -> float:
+    """The energy ``energy_error`` is relative to: |E0|, or T0 + |U0| when |E0| is tiny next to
+    them (:data:`NEAR_ZERO_ENERGY`); 1 (an absolute error) when every energy is zero. ``e0``
+    defaults to T0 + U0 (a caller that has the stored E0 passes it, so the two agree to the bit)."""
+    e0 = kinetic0 + potential0 if e0 is None else e0
+    size = kinetic0 + abs(potential0)
+    if abs(e0) >= NEAR_ZERO_ENERGY * size and e0 != 0.0:
+        return abs(e0)
+    return size if size > 0.0 else 1.0
 
 
 class TraceError(ValueError):

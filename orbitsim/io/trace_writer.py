@@ -38,6 +38,7 @@ from orbitsim.io.schema import (
     TRACE_FORMAT,
     TRACE_VERSION,
     VECTORS,
+    energy_scale,
 )
 from orbitsim.provenance import provenance
 
@@ -71,6 +72,12 @@ def _body_chunks(n_bodies: int) -> tuple[int, int, int]:
     return (1, _BODY_CHUNK_BYTES // 24, 3)
 
 
+def _series_chunks(tail: tuple[int, ...]) -> tuple[int, ...]:
+    """Chunk shape for (S, *tail) series: 1024 samples, fewer when a sample is wide (``(S, N)``)."""
+    width = max(1, int(np.prod(tail))) * 8
+    return (max(1, min(_SERIES_CHUNK_ROWS, _BODY_CHUNK_BYTES // width)), *tail)
+
+
 def _attr_value(key: str, value: Any) -> Any:
     """Convert `value` into something h5py stores as an attribute, or raise TypeError."""
     if isinstance(value, os.PathLike):
@@ -102,6 +109,12 @@ class TraceWriter:
         chunk must carry both).
     overwrite : bool, default False
         Replace an existing file at `path` on `close`.
+    extra_series : Mapping[str, tuple[int, ...]], optional
+        Further per-sample datasets by name and per-sample shape (``energy_offset``: ``()``,
+        ``elements/a``: ``(N,)``, ...), read from each chunk's ``extra`` mapping. An
+        ``energy_offset`` series is added to the energy before ``energy_error`` is computed.
+    group_attrs : Mapping[str, Mapping[str, Any]], optional
+        Attributes of the groups those series make (``{"elements": {"primary": "jacobi"}}``).
 
     Raises
     ------
@@ -115,7 +128,8 @@ class TraceWriter:
 
     def __init__(self, path: str | os.PathLike, *, attrs: Mapping[str, Any], names: Sequence[str],
                  masses: np.ndarray, n_bodies: int, record_positions: bool,
-                 overwrite: bool = False) -> None:
+                 overwrite: bool = False, extra_series: Mapping[str, tuple[int, ...]] | None = None,
+                 group_attrs: Mapping[str, Mapping[str, Any]] | None = None) -> None:
         self.path = Path(path)
         self.tmp_path = self.path.with_name(self.path.name + ".tmp")
         self._overwrite = overwrite
@@ -137,8 +151,12 @@ class TraceWriter:
         self._trailing.update({name: (3,) for name in VECTORS})
         if record_positions:
             self._trailing.update({name: (n_bodies, 3) for name in BODY_ARRAYS})
+        self._extra = dict(extra_series or {})
+        self._trailing.update(self._extra)
+        self.names = list(names)
         self._t_start = _time.perf_counter()
         self._E0: float | None = None
+        self._scale = 1.0
         self._last_step: int | None = None
         self._written = 0
         self._buffer: list[dict[str, np.ndarray]] = []
@@ -154,6 +172,9 @@ class TraceWriter:
             self._handle = vfd_handle(self._file)
             _bound_metadata_cache(self._file)
             self._init_file(self._file, attrs, names, masses)
+            for group, values in (group_attrs or {}).items():
+                for key, value in values.items():
+                    self._file[group].attrs[key] = _attr_value(key, value)
 
     def _init_file(self, f: h5py.File, attrs: Mapping[str, Any], names: Sequence[str],
                    masses: np.ndarray) -> None:
@@ -172,7 +193,7 @@ class TraceWriter:
             bodies.create_dataset("masses", data=masses)
             f.copy(bodies, "bodies")
         for name, tail in self._trailing.items():
-            chunks = _body_chunks(self.n_bodies) if len(tail) == 2 else (_SERIES_CHUNK_ROWS, *tail)
+            chunks = _body_chunks(self.n_bodies) if len(tail) == 2 else _series_chunks(tail)
             self._datasets[name] = f.create_dataset(
                 name, shape=(0, *tail), maxshape=(None, *tail), chunks=chunks,
                 dtype=np.int64 if name == "step" else np.float64, compression="gzip", compression_opts=4, shuffle=True)
@@ -188,6 +209,11 @@ class TraceWriter:
             self.abort()
             raise io_failure(err, f"{self.path}: {{reason}} while writing the trace ({self.tmp_path}, now removed)",
                              self.tmp_path) from None
+
+    @property
+    def series(self) -> dict[str, tuple[int, ...]]:
+        """The ``extra_series`` this trace holds, with their per-sample shapes."""
+        return dict(self._extra)
 
     @property
     def samples_written(self) -> int:
@@ -210,7 +236,10 @@ class TraceWriter:
         for name, tail in self._trailing.items():
             if name == "energy_error":
                 continue  # derived by the writer
-            value = getattr(chunk, name, None)
+            if name in self._extra:
+                value = (getattr(chunk, "extra", None) or {}).get(name)
+            else:
+                value = getattr(chunk, name, None)
             if value is None:
                 raise ValueError(f"{self.path}: chunk.{name} is required but is None")
             # Copy: callers typically reuse their sample buffers. A single sample may
@@ -231,16 +260,20 @@ class TraceWriter:
         chunk : object
             Any object with array attributes ``time``, ``step``, ``kinetic``,
             ``potential``, ``energy`` (k,), ``momentum``, ``angular_momentum`` (k, 3)
-            and ``positions``, ``velocities`` (k, N, 3) or None. The arrays are copied.
+            and ``positions``, ``velocities`` (k, N, 3) or None, and ``extra`` holding the
+            ``extra_series``. The arrays are copied.
         """
         f = self._require_open()
         data = self._normalise(chunk)
         energy = data["energy"]
         if self._E0 is None:
             self._E0 = float(energy[0])
-            f.attrs["E0"] = self._E0
-        delta = energy - self._E0
-        data["energy_error"] = delta / abs(self._E0) if self._E0 != 0.0 else delta
+            self._scale = energy_scale(float(data["kinetic"][0]), float(data["potential"][0]), self._E0)
+            with self._writing():
+                f.attrs["E0"] = self._E0
+                f.attrs["energy_scale"] = self._scale
+        conserved = energy + data["energy_offset"] if "energy_offset" in data else energy
+        data["energy_error"] = (conserved - self._E0) / self._scale
         self._buffer.append(data)
         self._buffer_rows += energy.shape[0]
         self._buffer_bytes += sum(a.nbytes for a in data.values())
@@ -273,6 +306,24 @@ class TraceWriter:
         with self._writing():
             for key, value in values.items():
                 f.attrs[key] = value
+
+    def add_arrays(self, group: str, arrays: Mapping[str, np.ndarray]) -> None:
+        """Add datasets to the group ``group`` (made if missing; an existing dataset of the same
+        name is replaced), each copied in from memory in one call (see the module docstring).
+        Object arrays are stored as UTF-8 text."""
+        f = self._require_open()
+        if group in self._trailing:
+            raise ValueError(f"{self.path}: {group!r} is a dataset of the trace format")
+        with in_memory() as memory, self._writing():
+            target = f.require_group(group)
+            for name, arr in arrays.items():
+                arr = np.asarray(arr)
+                text = arr.dtype == object or arr.dtype.kind == "U"
+                memory.create_dataset(name, data=arr.astype(object) if text else arr,
+                                      dtype=h5py.string_dtype("utf-8") if text else arr.dtype)
+                if name in target:
+                    del target[name]
+                target.copy(memory[name], name)
 
     def copy_group(self, name: str, source: h5py.Group) -> None:
         """Copy ``source`` (e.g. a group built in memory) into the trace as the group ``name``,

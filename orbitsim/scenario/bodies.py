@@ -20,8 +20,8 @@ from orbitsim.scenario.fields import Fields, describe, join_path
 
 __all__ = ["BodySet", "available_memory", "check_coincident", "read_bodies", "shift_to_barycentre"]
 
-CARTESIAN_KEYS = ("name", "m", "x", "v")
-ELEMENT_KEYS = ("name", "m", "primary", "a", "e", "inc", "Omega", "omega", "M", "f")
+CARTESIAN_KEYS = ("name", "m", "x", "v", "r")
+ELEMENT_KEYS = ("name", "m", "primary", "a", "e", "inc", "Omega", "omega", "M", "f", "r")
 EPHEMERIS_KEYS = ("source", "epoch", "jd", "bodies")
 PLUMMER_KEYS = ("kind", "n", "seed", "total_mass", "scale_radius", "prefix")
 DISC_KEYS = ("kind", "n", "seed", "central_mass", "r_min", "r_max", "e_max", "inc_max", "star", "prefix")
@@ -47,6 +47,7 @@ class BodySet:
     positions: list[np.ndarray] = field(default_factory=list)
     velocities: list[np.ndarray] = field(default_factory=list)
     origins: list[str] = field(default_factory=list)
+    radii: dict[int, float] = field(default_factory=dict)
     _index: dict[str, int] = field(default_factory=dict)
 
     def add(self, names: list[str], m: Any, x: Any, v: Any, origins: list[str], name_keys: list[str]) -> None:
@@ -70,6 +71,15 @@ class BodySet:
             return None
         m, x, v = self.arrays()
         return float(m[i]), x[i], v[i]
+
+    def radii_array(self) -> np.ndarray | None:
+        """(N,) radii, 0 for bodies without ``r``; None when no body gave one."""
+        if not self.radii:
+            return None
+        r = np.zeros(len(self.names))
+        for i, value in self.radii.items():
+            r[i] = value
+        return r
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Masses (N,), positions (N, 3), velocities (N, 3) of every body so far."""
@@ -131,6 +141,9 @@ def _read_body(item: Any, path: str, G: float, bodies: BodySet) -> None:
         raise ScenarioError("a body needs x and v (cartesian) or primary and a (orbital elements)", key=path)
     else:
         x, v = body.vector3("x"), body.vector3("v")
+    radius = body.number("r", None, minimum=0.0)
+    if radius is not None:
+        bodies.radii[len(bodies.names)] = radius
     bodies.add([name], [m], x, v, [path], [body.key("name")])
 
 

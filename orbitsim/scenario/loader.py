@@ -11,6 +11,7 @@ from typing import Any
 
 from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_barycentre
 from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.events import read_events
 from orbitsim.scenario.fields import Fields, describe
 from orbitsim.scenario.model import FRAMES, Scenario, resolve_steps
 from orbitsim.scenario.yamlio import parse_yaml
@@ -18,8 +19,8 @@ from orbitsim.scenario.yamlio import parse_yaml
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "steps", "t_end", "output", "softening",
-            "frame", "bodies", "ephemeris", "generator")
-OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint")
+            "frame", "bodies", "ephemeris", "generator", "events")
+OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary")
 CHECKPOINT_KEYS = ("every", "seconds")
 #: A YAML file in the config directory is a scenario when one of these starts a line: the same
 #: directory holds sweep and benchmark matrices, which are not.
@@ -177,9 +178,13 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     every = output.integer("every", None, minimum=1, steps=True)
     interval = output.number("interval", None, positive=True)
     positions = output.boolean("positions", None)
+    elements = output.boolean("elements", False)
+    primary = output.string("primary", "heaviest")
     checkpoint_every, checkpoint_seconds = _read_checkpoint(output)
     bodies = read_bodies(top, G, units)
     m, x, v = bodies.arrays()
+    radii = bodies.radii_array()
+    events = read_events(top, radii)
     if frame == "barycentric":
         x, v = shift_to_barycentre(m, x, v)
     check_coincident(x, bodies.names, bodies.origins, softening)
@@ -187,7 +192,8 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                         integrator_settings=settings, dt=dt, steps=steps, t_end=t_end, every=every,
                         interval=interval, record_positions=positions, softening=softening, frame=frame,
                         names=tuple(bodies.names), masses=m, positions=x, velocities=v, source=source,
-                        checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds)
+                        checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, radii=radii,
+                        events=events, record_elements=elements, elements_primary=primary)
     scenario.remember_origins(bodies.origins)
     return scenario
 

@@ -23,7 +23,6 @@ from orbitsim.scenario.fields import check_count, check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
 from orbitsim.scenario.timing import MAX_STEPS, resolve_steps, steps_limit_error
-from orbitsim.scenario.yamlio import dump_value, format_float
 
 if TYPE_CHECKING:
     from orbitsim.sampling import SamplePlan
@@ -82,6 +81,14 @@ class Scenario:
     checkpoint_every, checkpoint_seconds : int or float or None
         ``output.checkpoint``: save a checkpoint once this many steps, or seconds of wall time,
         have passed since the last one (see ``docs/checkpoints.md``); None for neither.
+    radii : numpy.ndarray or None
+        (N,) body radii ``r`` for collisions; None when no body gave one (all zero).
+    events : EventsConfig or None
+        The ``events:`` section (:mod:`orbitsim.events`); None runs the plain fixed-dt loop.
+    record_elements : bool
+        ``output.elements``: store every body's osculating elements at every sample.
+    elements_primary : str
+        ``output.primary``: ``heaviest``, ``jacobi`` or a body name.
     """
 
     name: str
@@ -105,6 +112,10 @@ class Scenario:
     source: str = "<inline>"
     checkpoint_every: int | None = None
     checkpoint_seconds: float | None = None
+    radii: np.ndarray | None = field(default=None, repr=False)
+    events: Any = None
+    record_elements: bool = False
+    elements_primary: str = "heaviest"
 
     def __post_init__(self) -> None:
         try:
@@ -141,6 +152,14 @@ class Scenario:
             raise ScenarioError(f"expected true or false, got {describe(self.record_positions)}",
                                 key="output.positions")
         check_coincident(self.positions, self.names, None, self.softening)
+        self._validate_events()
+
+    def _validate_events(self) -> None:
+        from orbitsim.scenario.events import check_elements_output, check_events, check_radii
+
+        self._set("radii", check_radii(self.radii, self.n_bodies))
+        check_events(self.events, self.integrator)
+        check_elements_output(self.record_elements, self.elements_primary, self.names)
 
     def _validate_bodies(self) -> None:
         try:
@@ -265,27 +284,11 @@ class Scenario:
     # -- serialisation -----------------------------------------------------------------------
 
     def to_dict(self) -> dict[str, Any]:
-        """The fully resolved scenario as plain Python (what :meth:`to_yaml` writes).
+        """The fully resolved scenario as plain Python (what :meth:`to_yaml` writes; see
+        :func:`orbitsim.scenario.serialize.scenario_to_dict`)."""
+        from orbitsim.scenario.serialize import scenario_to_dict
 
-        Bodies are explicit and Cartesian, the frame is ``as_given`` (any shift is already
-        applied), ``steps`` replaces ``t_end`` and the sampling is explicit, so
-        ``scenario_from_dict(s.to_dict())`` reproduces the same bits.
-        """
-        integrator: Any = self.integrator
-        if self.integrator_settings:
-            integrator = {"name": self.integrator, **self.integrator_settings}
-        output: dict[str, Any] = ({"interval": self.interval} if self.interval is not None
-                                  else {"every": self.sample_every})
-        output["positions"] = bool(self.record_positions)
-        if self.checkpoints:
-            # Only when set, so the text (and SHA-256) of scenarios without checkpoints is unchanged.
-            output["checkpoint"] = {k: v for k, v in (("every", self.checkpoint_every),
-                                                      ("seconds", self.checkpoint_seconds)) if v is not None}
-        bodies = [{"name": name, "m": float(m), "x": [float(c) for c in x], "v": [float(c) for c in v]}
-                  for name, m, x, v in zip(self.names, self.masses, self.positions, self.velocities, strict=True)]
-        return {"name": self.name, "description": self.description, "units": self.units, "G": self.G,
-                "integrator": integrator, "dt": self.dt, "steps": self.steps, "output": output,
-                "softening": self.softening, "frame": "as_given", "bodies": bodies}
+        return scenario_to_dict(self)
 
     def to_yaml(self) -> str:
         """The fully resolved scenario as YAML text; loading it reproduces the same bits.
@@ -294,26 +297,12 @@ class Scenario:
         which is one more reason to treat the arrays as read-only.
         """
         cached = self.__dict__.get("_yaml")
-        if cached is not None:
-            return cached
-        doc = self.to_dict()
-        del doc["bodies"]  # written row by row below: far faster than the generic writer
-        lines = ["# orbitsim scenario, fully resolved: explicit Cartesian bodies, whole steps."]
-        for key, value in doc.items():
-            if key == "output":
-                lines.append("output:")
-                lines.extend(f"  {k}: {dump_value(v)}" for k, v in value.items())
-            else:
-                lines.append(f"{key}: {dump_value(value)}")
-        lines.append("bodies:")
-        f = format_float
-        for name, m, x, v in zip(self.names, self.masses.tolist(), self.positions.tolist(),
-                                 self.velocities.tolist(), strict=True):
-            lines.append(f"  - {{name: {dump_value(name)}, m: {f(m)}, x: [{f(x[0])}, {f(x[1])}, {f(x[2])}], "
-                         f"v: [{f(v[0])}, {f(v[1])}, {f(v[2])}]}}")
-        text = "\n".join(lines) + "\n"
-        self._set("_yaml", text)
-        return text
+        if cached is None:
+            from orbitsim.scenario.serialize import scenario_to_yaml
+
+            cached = scenario_to_yaml(self)
+            self._set("_yaml", cached)
+        return cached
 
     @property
     def sha256(self) -> str:

@@ -1,0 +1,158 @@
+"""Checks of single bodies after a step: a step too long for the body's orbit (unresolved), and
+escapes. See :mod:`orbitsim.events.kernels` for what each check means.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from orbitsim._jit import jit, jit_inline
+from orbitsim.events.layout import (
+    B_ESCAPED,
+    B_UNRESOLVED,
+    C_ESCAPE,
+    ESC_HALT,
+    ESC_REMOVE,
+    EV_ESCAPE,
+    EV_UNRESOLVED,
+    F_ESC_R,
+    F_ETA,
+    F_G,
+    STOP_HALT,
+    STOP_NONE,
+    STOP_RESOLVE,
+    log_event,
+)
+
+
+@jit_inline
+def two_body_tau2(x, y, z, vx, vy, vz, gm):
+    """tau^2 = 2 |a|^2 / (|a'|^2 + |a| |a''|) of the relative two-body motion about ``gm``
+    (Pham, Rein & Spiegel 2024, eq. 16; the derivatives of a = -gm r / r^3 in closed form)."""
+    d2 = x * x + y * y + z * z
+    d = math.sqrt(d2)
+    pre2 = -gm / (d2 * d)
+    ax, ay, az = pre2 * x, pre2 * y, pre2 * z
+    a = math.sqrt(ax * ax + ay * ay + az * az)
+    pre3 = gm / (d2 * d2 * d)
+    jx = pre3 * (-vx * (y * y + z * z) + 2.0 * x * x * vx + 3.0 * x * (y * vy + z * vz))
+    jy = pre3 * (-vy * (x * x + z * z) + 2.0 * y * y * vy + 3.0 * y * (x * vx + z * vz))
+    jz = pre3 * (-vz * (x * x + y * y) + 2.0 * z * z * vz + 3.0 * z * (y * vy + x * vx))
+    j2 = jx * jx + jy * jy + jz * jz
+    pre4 = gm / (d2 * d2 * d2 * d)
+    rv = x * vx + y * vy + z * vz
+    sx = pre4 * (d2 * (-ax * (y * y + z * z) + 2.0 * x * x * ax + vx * (y * vy + z * vz)
+                       + x * (4.0 * vx * vx + 3.0 * (y * ay + vy * vy + z * az + vz * vz)))
+                 - 5.0 * rv * (-vx * (y * y + z * z) + 2.0 * x * x * vx + 3.0 * x * (y * vy + z * vz)))
+    sy = pre4 * (d2 * (-ay * (x * x + z * z) + 2.0 * y * y * ay + vy * (x * vx + z * vz)
+                       + y * (4.0 * vy * vy + 3.0 * (x * ax + vx * vx + z * az + vz * vz)))
+                 - 5.0 * rv * (-vy * (x * x + z * z) + 2.0 * y * y * vy + 3.0 * y * (x * vx + z * vz)))
+    sz = pre4 * (d2 * (-az * (y * y + x * x) + 2.0 * z * z * az + vz * (y * vy + x * vx)
+                       + z * (4.0 * vz * vz + 3.0 * (y * ay + vy * vy + x * ax + vx * vx)))
+                 - 5.0 * rv * (-vz * (y * y + x * x) + 2.0 * z * z * vz + 3.0 * z * (y * vy + x * vx)))
+    s = math.sqrt(sx * sx + sy * sy + sz * sz)
+    den = j2 + a * s
+    return 2.0 * a * a / den if den > 0.0 else np.inf
+
+
+@jit_inline
+def _pericentre_tau2(x, y, z, vx, vy, vz, gm):
+    """tau^2 at the pericentre of the osculating two-body orbit of (r, v) about ``gm``."""
+    hx = y * vz - z * vy
+    hy = z * vx - x * vz
+    hz = x * vy - y * vx
+    h2 = hx * hx + hy * hy + hz * hz
+    r = math.sqrt(x * x + y * y + z * z)
+    v2 = vx * vx + vy * vy + vz * vz
+    energy = 0.5 * v2 - gm / r
+    e = math.sqrt(max(0.0, 1.0 + 2.0 * energy * h2 / (gm * gm)))
+    if h2 == 0.0:
+        return np.inf  # radial: there is no pericentre short of a collision
+    rp = h2 / (gm * (1.0 + e))
+    return two_body_tau2(rp, 0.0, 0.0, 0.0, math.sqrt(h2) / rp, 0.0, gm)
+
+
+@jit
+def check_unresolved(watch, pos, vel, m, n_done, t0, dt):
+    """Flag bodies whose step is longer than eta tau about their dominant attractor."""
+    fconf, prev, body, attractor = watch[1], watch[3], watch[4], watch[11]
+    G, eta = fconf[F_G], fconf[F_ETA]
+    n = pos.shape[1]
+    for i in range(n):
+        k = attractor[i]
+        if k < 0:
+            body[i] &= ~B_UNRESOLVED
+            continue
+        if attractor[k] == i and (m[i] > m[k] or (m[i] == m[k] and i > k)):
+            continue  # the pair is judged once, under its lighter body
+        x, y, z = pos[0, i] - pos[0, k], pos[1, i] - pos[1, k], pos[2, i] - pos[2, k]
+        vx, vy, vz = vel[0, i] - vel[0, k], vel[1, i] - vel[1, k], vel[2, i] - vel[2, k]
+        gm = G * (m[i] + m[k])
+        tau2 = two_body_tau2(x, y, z, vx, vy, vz, gm)
+        ox = prev[0, 0, i] - prev[0, 0, k]
+        oy = prev[0, 1, i] - prev[0, 1, k]
+        oz = prev[0, 2, i] - prev[0, 2, k]
+        orv = ox * (prev[1, 0, i] - prev[1, 0, k]) + oy * (prev[1, 1, i] - prev[1, 1, k]) \
+            + oz * (prev[1, 2, i] - prev[1, 2, k])
+        if orv < 0.0 and x * vx + y * vy + z * vz > 0.0:  # passed its closest point within the step
+            tau2 = min(tau2, _pericentre_tau2(x, y, z, vx, vy, vz, gm))
+        if dt * dt > eta * eta * tau2:
+            if body[i] & B_UNRESOLVED == 0:
+                body[i] |= B_UNRESOLVED
+                tau = math.sqrt(tau2)
+                log_event(watch, EV_UNRESOLVED, n_done, n_done, i, k, t0 + n_done * dt,
+                     math.sqrt(x * x + y * y + z * z), math.sqrt(vx * vx + vy * vy + vz * vz), eta * tau)
+        else:
+            body[i] &= ~B_UNRESOLVED
+
+
+@jit
+def check_escapes(watch, pos, vel, m, n_done, t0, dt):
+    """Bodies beyond R from the centre of mass on unbound orbits relative to the rest."""
+    iconf, fconf, body = watch[0], watch[1], watch[4]
+    G, limit = fconf[F_G], fconf[F_ESC_R]
+    n = pos.shape[1]
+    total = cx = cy = cz = ux0 = uy0 = uz0 = 0.0
+    for i in range(n):
+        total += m[i]
+        cx += m[i] * pos[0, i]
+        cy += m[i] * pos[1, i]
+        cz += m[i] * pos[2, i]
+        ux0 += m[i] * vel[0, i]
+        uy0 += m[i] * vel[1, i]
+        uz0 += m[i] * vel[2, i]
+    if total <= 0.0:
+        return STOP_NONE
+    cx, cy, cz, ux0, uy0, uz0 = cx / total, cy / total, cz / total, ux0 / total, uy0 / total, uz0 / total
+    stop = STOP_NONE
+    for i in range(n):
+        dx, dy, dz = pos[0, i] - cx, pos[1, i] - cy, pos[2, i] - cz
+        d = math.sqrt(dx * dx + dy * dy + dz * dz)
+        rest = total - m[i]
+        escaping = False
+        speed = 0.0
+        energy = 0.0
+        if d > limit and rest > 0.0:
+            # Relative to the rest's centre of mass: X_rest = (M X - m_i x_i) / (M - m_i)
+            f = total / rest
+            rx, ry, rz = f * dx, f * dy, f * dz
+            ux = f * (vel[0, i] - ux0)
+            uy = f * (vel[1, i] - uy0)
+            uz = f * (vel[2, i] - uz0)
+            speed = math.sqrt(ux * ux + uy * uy + uz * uz)
+            energy = 0.5 * speed * speed - G * total / math.sqrt(rx * rx + ry * ry + rz * rz)
+            escaping = energy > 0.0
+        if not escaping:
+            body[i] &= ~B_ESCAPED
+            continue
+        if body[i] & B_ESCAPED:
+            continue
+        body[i] |= B_ESCAPED
+        log_event(watch, EV_ESCAPE, n_done, n_done, i, -1, t0 + n_done * dt, d, speed, energy)
+        if iconf[C_ESCAPE] == ESC_HALT:
+            stop = STOP_HALT
+        elif iconf[C_ESCAPE] == ESC_REMOVE:
+            stop = max(stop, STOP_RESOLVE)
+    return stop

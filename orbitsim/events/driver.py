@@ -1,0 +1,238 @@
+"""What a :class:`~orbitsim.simulation.Simulation` with events does between its jitted calls.
+
+:class:`Watcher` owns the watch arrays and everything the events change: which of the scenario's
+bodies are still in the run (``alive``), their radii and merged masses, the energy carried off
+(``energy_offset``), the log, and each body's fate. After every call it drains the logged events
+and, when the call stopped for it, resolves them:
+
+* **merge** (``collisions.resolve: merge``): the pair becomes one body at the lower index, with
+  the summed mass (bit-exact: one addition), the mass-weighted position and velocity (so the
+  momentum is conserved to round-off) and the volume-conserving radius (r_i^3 + r_j^3)^(1/3);
+* **remove** (``escape.action: remove``): the body leaves the run;
+* **halt**: the run ends there (:attr:`Watcher.halted`).
+
+The energy a merge or a removal takes out is the total energy just before minus just after
+(kinetic and every pair's potential, so the pairs with third bodies count too; REBOUND's
+``track_energy_offset`` counts the merging pair only); it is added to ``energy_offset``, so
+E + offset stays what the integrator keeps it (``energy_error`` is computed from E + offset).
+The system then continues with fewer bodies, as if it had started so: the kernels never see a
+removed body, so they need no mask and a run without events is unchanged. Samples keep the
+scenario's N: a removed body's position and velocity are NaN from its removal on.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from orbitsim.events import layout as wl
+from orbitsim.events.config import EventsConfig
+from orbitsim.events.log import Event, RunEvents, log_arrays, log_from_arrays
+from orbitsim.events.watch import build_watch, drain, open_encounters, shrink_watch, watch_arrays, watch_from_arrays
+from orbitsim.results import SampleChunk
+
+if TYPE_CHECKING:
+    from orbitsim.simulation import Simulation
+
+__all__ = ["Watcher"]
+
+
+class Watcher:
+    """The events of one simulation: the watch, the bodies left, the offset, the log, the fates."""
+
+    def __init__(self, sim: Simulation, config: EventsConfig, radii: Any) -> None:
+        n = sim.n
+        self.config = config
+        self.n0 = n
+        self.alive = np.arange(n, dtype=np.int64)
+        self.radii = np.zeros(n) if radii is None else np.array(radii, dtype=np.float64).reshape(-1)
+        if self.radii.shape != (n,) or not np.all(np.isfinite(self.radii)) or np.any(self.radii < 0.0):
+            raise ValueError(f"radii must be {n} finite numbers >= 0")
+        self.offset = 0.0
+        self.log: list[Event] = []
+        self.removed_step = np.full(n, -1, dtype=np.int64)
+        self.removed_time = np.full(n, np.nan)
+        self.merged_into = np.full(n, -1, dtype=np.int64)
+        self.final_masses = sim.m.copy()
+        self.initial_radii = self.radii.copy()
+        self.final_radii = self.radii.copy()
+        self.halted: Event | None = None
+        self.watch = build_watch(config, sim.m, self.radii, sim.G)
+
+    # -- around each jitted call -------------------------------------------------------------
+
+    def call(self, sim: Simulation, targets: np.ndarray, record: np.ndarray, out: tuple[np.ndarray, ...],
+             ) -> tuple[int, int, bool, bool]:
+        """One jitted call of the scheme's ``run_watched``; ``(written, n_done, finite, acted)``."""
+        state = (sim.pos, sim.vel, sim.acc, sim.m)
+        written, n_done, finite, acted = sim.module.run_watched(
+            state, sim.force, sim.dt, sim.work, sim.t0, sim.steps_done, targets, record, out, self.watch)
+        return int(written), int(n_done), bool(finite), bool(acted)
+
+    def expand(self, chunk: SampleChunk) -> SampleChunk:
+        """The chunk with the scenario's N bodies (NaN for those no longer in the run) and the
+        energy offset of its samples."""
+        offset = np.full(len(chunk), self.offset)
+        extra = dict(chunk.extra or {})
+        extra["energy_offset"] = offset
+        if chunk.positions is None or len(self.alive) == self.n0:
+            return _with(chunk, extra=extra)
+        shape = (len(chunk), self.n0, 3)
+        pos, vel = np.full(shape, np.nan), np.full(shape, np.nan)
+        pos[:, self.alive] = chunk.positions
+        vel[:, self.alive] = chunk.velocities
+        return _with(chunk, positions=pos, velocities=vel, extra=extra)
+
+    def scenario_masses(self) -> np.ndarray:
+        """(N_scenario,) masses now: merged masses, NaN for bodies out of the run."""
+        masses = np.full(self.n0, np.nan)
+        masses[self.alive] = self.final_masses[self.alive]
+        return masses
+
+    def to_scenario_bodies(self, rows: np.ndarray) -> np.ndarray:
+        """(N_now, ...) rows of the bodies still in the run as (N_scenario, ...), NaN for the others."""
+        out = np.full((self.n0, *rows.shape[1:]), np.nan)
+        out[self.alive] = rows
+        return out
+
+    def after_call(self, sim: Simulation, acted: bool) -> None:
+        """Drain the call's events and, when it stopped for them, resolve them."""
+        events, self.watch = drain(self.watch, self.alive)
+        stop = int(self.watch[9][wl.STOP]) if acted else wl.STOP_NONE
+        self.watch[9][wl.STOP] = wl.STOP_NONE
+        if stop == wl.STOP_HALT:
+            self._halt(events, sim.steps_done)
+        elif stop == wl.STOP_RESOLVE:
+            events = self._resolve(sim, events)
+        self.log.extend(events)
+
+    def _halt(self, events: list[Event], step: int) -> None:
+        for k in range(len(events) - 1, -1, -1):
+            if events[k].step == step and self._halts(events[k]):
+                events[k] = _replace(events[k], outcome="halted")
+                self.halted = events[k]
+                return
+
+    def _halts(self, event: Event) -> bool:
+        c, enc, esc = self.config.collisions, self.config.encounters, self.config.escape
+        return bool((event.kind == "collision" and c is not None and c.resolve == "halt")
+                    or (event.kind == "encounter" and enc is not None and enc.halt)
+                    or (event.kind == "escape" and esc is not None and esc.action == "halt"))
+
+    # -- merges and removals -----------------------------------------------------------------
+
+    def _resolve(self, sim: Simulation, events: list[Event]) -> list[Event]:
+        """Apply the merges and removals logged at the last step; return the events, annotated."""
+        step, time = sim.steps_done, sim.time
+        index = {int(orig): k for k, orig in enumerate(self.alive)}  # scenario index -> current index
+        m, pos, vel = sim.m.copy(), sim.pos.copy(), sim.vel.copy()
+        radii = self.radii.copy()
+        gone = np.zeros(len(m), dtype=bool)
+        into = np.arange(len(m))  # where each current body went (itself unless merged)
+        merge = self.config.collisions is not None and self.config.collisions.resolve == "merge"
+        remove = self.config.escape is not None and self.config.escape.action == "remove"
+        for k, event in enumerate(events):
+            if event.step != step:
+                continue
+            if event.kind == "collision" and merge:
+                a, b = _root(into, index[event.i]), _root(into, index[event.j])
+                if a == b:
+                    continue
+                keep, lose = min(a, b), max(a, b)
+                _merge_into(keep, lose, m, pos, vel, radii)
+                gone[lose], into[lose] = True, keep
+                events[k] = _replace(event, outcome="merged", into=int(self.alive[keep]))
+            elif event.kind == "escape" and remove and not gone[index[event.i]]:
+                gone[index[event.i]] = True
+                events[k] = _replace(event, outcome="removed")
+        if gone.any():
+            events.extend(open_encounters(self.watch, self.alive, involving=gone))
+            self._take_out(sim, gone, into, m, pos, vel, radii, step, time)
+        return events
+
+    def _take_out(self, sim: Simulation, gone: np.ndarray, into: np.ndarray, m: np.ndarray, pos: np.ndarray,
+                  vel: np.ndarray, radii: np.ndarray, step: int, time: float) -> None:
+        before = sim.total_energy()
+        keep = np.flatnonzero(~gone)
+        for k in np.flatnonzero(gone):
+            orig = int(self.alive[k])
+            self.removed_step[orig], self.removed_time[orig] = step, time
+            if into[k] != k:
+                self.merged_into[orig] = int(self.alive[_root(into, k)])
+        for k in keep:
+            self.final_masses[self.alive[k]] = m[k]
+            self.final_radii[self.alive[k]] = radii[k]
+        self.watch = shrink_watch(self.watch, keep, radii[keep], m[keep])
+        self.alive, self.radii = self.alive[keep], radii[keep]
+        sim.replace_bodies(m[keep], pos[:, keep], vel[:, keep])
+        self.offset += before - sim.total_energy()
+
+    def outcome(self, final_run: bool = True) -> RunEvents:
+        """The run's events and the bodies' fates. At the end of a run (``final_run``) the
+        encounters still in progress are added, marked ``open``; they are not added to the log,
+        which a checkpoint keeps, so a run extended from here logs each of them once, when it ends."""
+        events = list(self.log)
+        if final_run:
+            seen = {(e.i, e.j, e.step_start) for e in events if e.kind == "encounter"}
+            events.extend(_replace(e, outcome="open") for e in open_encounters(self.watch, self.alive)
+                          if (e.i, e.j, e.step_start) not in seen)
+        fates = {"radii": self.initial_radii.copy(), "final_radii": self.final_radii.copy(),
+                 "final_masses": self.final_masses.copy(), "removed_step": self.removed_step.copy(),
+                 "removed_time": self.removed_time.copy(), "merged_into": self.merged_into.copy()}
+        return RunEvents(tuple(events), fates)
+
+    # -- checkpoints -------------------------------------------------------------------------
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Everything to continue from, as arrays (stored in a checkpoint, bit for bit)."""
+        out = {f"watch/{k}": v for k, v in watch_arrays(self.watch).items()}
+        out.update({f"log/{k}": v for k, v in log_arrays(self.log).items()})
+        out.update(alive=self.alive.copy(), radii=self.radii.copy(), offset=np.array(self.offset),
+                   removed_step=self.removed_step.copy(), removed_time=self.removed_time.copy(),
+                   merged_into=self.merged_into.copy(), final_masses=self.final_masses.copy(),
+                   initial_radii=self.initial_radii.copy(), final_radii=self.final_radii.copy())
+        return out
+
+    def restore(self, arrays: dict[str, np.ndarray]) -> None:
+        """Continue from :meth:`arrays` (the simulation already holds the bodies left)."""
+        self.watch = watch_from_arrays({k[6:]: v for k, v in arrays.items() if k.startswith("watch/")})
+        self.log = log_from_arrays({k[4:]: v for k, v in arrays.items() if k.startswith("log/")})
+        self.alive = np.array(arrays["alive"], dtype=np.int64)
+        self.radii = np.array(arrays["radii"], dtype=np.float64)
+        self.n0 = int(arrays["final_masses"].shape[0])
+        self.offset = float(arrays["offset"])
+        for name in ("removed_step", "removed_time", "merged_into", "final_masses", "initial_radii", "final_radii"):
+            setattr(self, name, np.array(arrays[name]))
+
+
+def _root(into: np.ndarray, k: int) -> int:
+    """The body ``k`` ended up in, following merges within one step."""
+    while into[k] != k:
+        k = int(into[k])
+    return k
+
+
+def _merge_into(keep: int, lose: int, m: np.ndarray, pos: np.ndarray, vel: np.ndarray, radii: np.ndarray) -> None:
+    """Body ``lose`` joins ``keep``: mass and momentum conserved, volume-conserving radius."""
+    total = m[keep] + m[lose]
+    if total > 0.0:
+        pos[:, keep] = (m[keep] * pos[:, keep] + m[lose] * pos[:, lose]) / total
+        vel[:, keep] = (m[keep] * vel[:, keep] + m[lose] * vel[:, lose]) / total
+    else:  # two massless bodies: the midpoint, the mean velocity
+        pos[:, keep] = 0.5 * (pos[:, keep] + pos[:, lose])
+        vel[:, keep] = 0.5 * (vel[:, keep] + vel[:, lose])
+    m[keep] = total
+    radii[keep] = np.cbrt(radii[keep] ** 3 + radii[lose] ** 3)
+
+
+def _replace(event: Event, **changes: Any) -> Event:
+    from dataclasses import replace
+
+    return replace(event, **changes)
+
+
+def _with(chunk: SampleChunk, **changes: Any) -> SampleChunk:
+    from dataclasses import replace
+
+    return replace(chunk, **changes)
