@@ -1,4 +1,6 @@
-"""``orbitsim plot``: orbits on the x-y plane and |dE/E| against time, in one figure."""
+"""``orbitsim plot``: orbits on the x-y plane and |dE/E| against time, in one figure; or, with
+``--elements``, every body's osculating elements against time
+(:mod:`orbitsim.analysis.element_figure`)."""
 
 from __future__ import annotations
 
@@ -23,28 +25,52 @@ MAX_LEGEND = 12
 @click.option("-o", "--output", type=click.Path(), default=None,  # a directory is refused in one line below
               help="Figure file; the format follows the suffix (.png, .pdf, .svg). Default: the trace's "
                    "name with .png. Example: -o orbit.png")
+@click.option("--elements", is_flag=True,
+              help="Draw every body's osculating orbital elements (a, e, inc, Omega, omega, f, M) against "
+                   "time, one panel each, instead; the run must have recorded them (output.elements: true). "
+                   "Default figure: the trace's name with _elements.png. Example: --elements")
 @force_option()
 @reports_errors
-def command(trace: str, output: str | None, force: bool) -> None:
+def command(trace: str, output: str | None, elements: bool, force: bool) -> None:
     """Plot TRACE.h5: orbits projected on x-y, and |dE/E| against time on a log axis.
+
+    With --elements: each body's a, e, inc, Omega, omega, f and M against time, about the
+    primary the run recorded them for (heaviest body, Jacobi, or a named body).
 
     \b
     Examples:
       orbitsim plot two_body_circular.h5
       orbitsim plot run.h5 -o run.pdf --force
+      orbitsim plot kozai.h5 --elements
     """
     from orbitsim.io.trace import open_trace_summary
 
-    target = Path(output) if output is not None else Path(trace).with_suffix(".png")
-    _check_figure_path(output or str(target), Path(trace).stem)  # before the trace is read
+    stem = Path(trace).stem
+    default = Path(trace).with_name(f"{stem}_elements.png") if elements else Path(trace).with_suffix(".png")
+    target = Path(output) if output is not None else default
+    _check_figure_path(output or str(target), stem)  # before the trace is read
     summary = open_trace_summary(trace)  # checks the format before anything is drawn
+    if elements:
+        from orbitsim.analysis.element_figure import check_elements
+
+        check_elements(summary)  # no elements group: one line, before any drawing
     if target.exists() and not force:
         fail(f"{target}: figure already exists; use --force to overwrite it")
     if not target.parent.is_dir():
         fail(f"{target}: directory {target.parent} does not exist")
-    data = _read(trace, summary)
-    _draw(data, summary["attrs"], target)
+    if elements:
+        _plot_elements(trace, summary, target)
+    else:
+        _draw(_read(trace, summary), summary["attrs"], target)
     click.echo(f"wrote {target}")
+
+
+def _plot_elements(trace: str, summary: dict[str, Any], target: Path) -> None:
+    from orbitsim.analysis.element_figure import draw_elements, read_elements
+
+    data = read_elements(trace, summary, MAX_PLOT_SAMPLES, MAX_TRACKS)
+    length, time_unit = _units(summary["attrs"])
+    draw_elements(data, target, _title(summary["attrs"], target, time_unit), length, time_unit, MAX_LEGEND)
 
 
 def figure_formats() -> list[str]:
@@ -108,12 +134,17 @@ def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path) -> None:
     fig, (ax_orbit, ax_energy) = plt.subplots(1, 2, figsize=(12, 5.5), layout="constrained")
     _draw_orbits(ax_orbit, data, length)
     _draw_energy(ax_energy, data, time_unit)
+    fig.suptitle(_title(attrs, target, time_unit))
+    fig.savefig(target, dpi=120)
+    plt.close(fig)
+
+
+def _title(attrs: dict[str, Any], target: Path, time_unit: str) -> str:
+    """Scenario, integrator and dt, and the status when it is not ``complete``."""
     status = attrs.get("status", "?")
     title = (f"{attrs.get('scenario_name', target.stem)}: {attrs.get('integrator', '?')}, "
              f"dt = {attrs.get('dt', float('nan')):.4g} {time_unit}")
-    fig.suptitle(title if status == "complete" else f"{title} ({status})")
-    fig.savefig(target, dpi=120)
-    plt.close(fig)
+    return title if status == "complete" else f"{title} ({status})"
 
 
 def _draw_orbits(ax: Any, data: dict[str, Any], length: str) -> None:
