@@ -119,7 +119,11 @@ def _local_cluster(plan: ClusterPlan) -> Any:
         # No dashboard is wanted, but the scheduler serves HTTP anyway (health checks): a random
         # port keeps it from fighting over 8787 with other clusters on the machine.
         dashboard_address=":0",
-        silence_logs=logging.ERROR,
+        # Dask's own log lines would break the one-line error contract on stderr. A worker that
+        # cannot reach a scheduler shutting down (after Ctrl-C, while it is busy compiling)
+        # logs at ERROR a traceback that means nothing to the user; a failed run is reported
+        # through its summary row, and a lost worker through the error the driver raises.
+        silence_logs=logging.CRITICAL,
         env={"NUMBA_NUM_THREADS": str(plan.threads)},
         preload=[__name__],  # dask_setup: a restarted worker ignores Ctrl-C too
     )
