@@ -245,8 +245,19 @@ class Simulation:
                 self.diverged = True
                 return
             if watcher is not None and watcher.halted is not None:
+                yield self._halt_sample(buffers, keep_positions)
                 return
             budget = _next_budget(budget, elapsed)
+
+    def _halt_sample(self, buffers: SampleBuffers, keep_positions: bool) -> SampleChunk:
+        """The sample of the state a run halted in (whatever the plan): a trace then ends where the
+        run did. The scheme's own ``run`` records it without taking a step."""
+        target = np.array([self.steps_done], dtype=np.int64)
+        state = (self.pos, self.vel, self.acc, self.m)
+        self._module.run(state, self.force, self.dt, self.work, self.t0, self.steps_done, target,
+                         np.ones(1, dtype=np.bool_), buffers.views(self.rows))
+        chunk = self.watcher.expand(buffers.chunk(1))
+        return self._with_elements(chunk, keep_positions) if self.elements is not None else chunk
 
     def _with_elements(self, chunk: SampleChunk, keep_positions: bool) -> SampleChunk:
         """The chunk with every body's elements in ``extra`` (NaN for bodies out of the run), its

@@ -7,20 +7,29 @@ Columns, in order (``params`` are the sweep's dotted key paths, one column each)
 ``run_id``                str    16 hex digits of the SHA-256 of the fully resolved scenario
                                  (empty for an invalid case: it has no resolved scenario)
 *params*                  any    the value of each swept key path in this case
-``status``                str    ``complete``, ``diverged``, ``failed``, ``not run`` or ``invalid``
+``status``                str    ``complete``, ``diverged``, ``halted``, ``failed``, ``not run`` or
+                                 ``invalid``
 ``steps_done``            int    steps integrated (0 when the run failed before stepping)
-``max_abs_energy_error``  float  max over samples of abs(E - E0) / abs(E0)
-``final_energy_error``    float  (E - E0) / abs(E0) at the last sample
+``max_abs_energy_error``  float  max over samples of abs(energy_error), the trace's
+                                 (E + energy_offset - E0) / energy_scale
+``final_energy_error``    float  the trace's energy_error at the last sample
 ``wall_time_s``           float  wall-clock seconds of the run, as recorded in its trace
 ``steps_per_second``      float  ``steps_done / wall_time_s``
+``encounters``            count  close encounters in the trace's ``events`` table (0 for a run
+                                 without ``events:``; missing for a run with no trace)
+``collisions``            count  collisions, likewise
+``escapes``               count  escapes, likewise
+``unresolved``            count  unresolved-step events, likewise
 ``worker``                str    address of the Dask worker that ran it (empty when unknown: a run
                                  that finished while an interrupted sweep shut down)
 ``resumed``               bool   true when an existing complete trace was reused
 ``trace``                 str    trace path relative to the output directory (empty when none)
-``error``                 str    why a run failed or diverged, or a case is invalid (empty otherwise)
+``error``                 str    why a run failed, diverged or halted, or a case is invalid (empty
+                                 otherwise)
 ========================  =====  ===========================================================
 
 Missing numbers (a failed run has no energy error) are empty in the CSV and NaN in the HDF5 file.
+A count is a whole number in the CSV and float64 in the HDF5 file, so that it can be NaN there.
 Both files are written next to their final name and renamed onto it, so a summary on disk is
 always whole.
 """
@@ -35,7 +44,11 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["RESULT_COLUMNS", "column_names", "format_table", "write_csv", "write_h5"]
+__all__ = ["RESULT_COLUMNS", "Count", "column_names", "events_cell", "format_table", "write_csv", "write_h5"]
+
+class Count(int):
+    """The type of a count column: a whole number that may be missing (a run with no trace)."""
+
 
 #: Result columns and their types; the parameter columns go between ``run_id`` and ``status``.
 RESULT_COLUMNS: tuple[tuple[str, type], ...] = (
@@ -45,6 +58,10 @@ RESULT_COLUMNS: tuple[tuple[str, type], ...] = (
     ("final_energy_error", float),
     ("wall_time_s", float),
     ("steps_per_second", float),
+    ("encounters", Count),
+    ("collisions", Count),
+    ("escapes", Count),
+    ("unresolved", Count),
     ("worker", str),
     ("resumed", bool),
     ("trace", str),
@@ -118,7 +135,7 @@ def _column_array(name: str, kind: type, rows: Sequence[Mapping[str, Any]]) -> A
     import numpy as np
 
     values = [row.get(name) for row in rows]
-    if kind is float:
+    if kind is float or kind is Count:  # a count is float64 here, so that a missing one can be NaN
         return np.array([math.nan if v is None else float(v) for v in values], dtype=np.float64)
     if kind is int:
         return np.array([0 if v is None else int(v) for v in values], dtype=np.int64)
@@ -186,14 +203,38 @@ _TABLE: tuple[tuple[str, str, int], ...] = (
 )
 
 
+#: How the terminal table abbreviates each count column, in its ``events logged`` column.
+_EVENT_ABBREVIATIONS = (("encounters", "enc"), ("collisions", "col"), ("escapes", "esc"), ("unresolved", "unres"))
+#: Width of the ``events logged`` column before truncation: "12 enc, 3 col, 1 esc, 40 unres" fits.
+_EVENTS_WIDTH = 30
+
+
+def events_cell(row: Mapping[str, Any]) -> str:
+    """The terminal's compact ``events logged`` cell: ``3 enc, 1 esc``; "" for none, or for a run with no trace."""
+    parts = []
+    for column, short in _EVENT_ABBREVIATIONS:
+        value = row.get(column)
+        if isinstance(value, int | float) and not (isinstance(value, float) and math.isnan(value)) and value > 0:
+            parts.append(f"{int(value)} {short}")
+    return ", ".join(parts)
+
+
 def format_table(rows: Sequence[Mapping[str, Any]], params: Sequence[str], max_rows: int = 40) -> str:
-    """A fixed-width text table of the summary (the first ``max_rows`` rows) for the terminal."""
-    headers = ["case", "run_id", *params, *(h for h, _, _ in _TABLE)]
+    """A fixed-width text table of the summary (the first ``max_rows`` rows) for the terminal.
+
+    The ``events logged`` column (before ``error``) is there only when a run logged an event: a sweep
+    without ``events:`` gets the table it always got.
+    """
+    table = list(_TABLE)
+    if any(events_cell(row) for row in rows):
+        # Not plain "events": a sweep of the scenario key `events` has a parameter column of that name.
+        table.insert(len(table) - 1, ("events logged", "", _EVENTS_WIDTH))
+    headers = ["case", "run_id", *params, *(h for h, _, _ in table)]
     lines = []
     for row in rows[:max_rows]:
         cells = [_short(row["case"], 6), _short(row["run_id"], 16)]
         cells += [_short(row["params"].get(p), 20) for p in params]
-        cells += [_short(row.get(key), width) for _, key, width in _TABLE]
+        cells += [_short(row.get(key) if key else events_cell(row), width) for _, key, width in table]
         lines.append(cells)
     widths = [max([len(h)] + [len(c[i]) for c in lines]) for i, h in enumerate(headers)]
     out = ["  ".join(h.ljust(w) for h, w in zip(headers, widths, strict=True)).rstrip()]

@@ -19,7 +19,7 @@ import os
 import socket
 from typing import Any
 
-__all__ = ["failed_result", "run_case", "run_error", "trace_result", "warm_up", "worker_label"]
+__all__ = ["EVENT_COLUMNS", "failed_result", "run_case", "run_error", "trace_result", "warm_up", "worker_label"]
 
 
 def worker_label() -> str:
@@ -56,8 +56,13 @@ def run_error(err: BaseException, trace_path: str = "") -> str:
     return text
 
 
+#: Summary columns of event counts, and the kind of the trace's ``events`` table each counts.
+EVENT_COLUMNS = (("encounters", "encounter"), ("collisions", "collision"), ("escapes", "escape"),
+                 ("unresolved", "unresolved"))
+
+
 def failed_result(err: BaseException | str, worker: str = "") -> dict[str, Any]:
-    """The result of a run that produced no usable trace."""
+    """The result of a run that produced no usable trace (its event counts are unknown: None)."""
     return {
         "status": "failed",
         "steps_done": 0,
@@ -65,20 +70,30 @@ def failed_result(err: BaseException | str, worker: str = "") -> dict[str, Any]:
         "final_energy_error": math.nan,
         "wall_time_s": math.nan,
         "steps_per_second": math.nan,
+        **{column: None for column, _ in EVENT_COLUMNS},
         "worker": worker,
         "error": err if isinstance(err, str) else _one_line(err),
     }
 
 
+def _event_counts(f: Any) -> dict[str, int]:
+    """The trace's events by summary column; 0 each for a run without ``events:``."""
+    from orbitsim.analysis.trace_events import event_counts
+
+    counts = event_counts(f) or {}
+    return {column: int(counts.get(kind, 0)) for column, kind in EVENT_COLUMNS}
+
+
 def trace_result(path: str | os.PathLike, *, require_sha256: str | None = None) -> dict[str, Any] | None:
-    """Summary numbers of a finished trace: status, steps, energy errors, wall time, steps/s.
+    """Summary numbers of a finished trace: status, steps, energy errors, wall time, steps/s and
+    the counts of events by kind.
 
     With ``require_sha256`` (the resume check) the answer is None unless the trace is complete and
     was made from the scenario with that hash.
 
-    One open of the file, reading the root attributes and ``energy_error`` only: this runs once per
-    run and per resumed run, and :func:`orbitsim.io.trace.open_trace_summary` (which also walks
-    every dataset) would double the cost of a small run's bookkeeping.
+    One open of the file, reading the root attributes, ``energy_error`` and ``events/kind`` only:
+    this runs once per run and per resumed run, and :func:`orbitsim.io.trace.open_trace_summary`
+    (which also walks every dataset) would double the cost of a small run's bookkeeping.
 
     Raises
     ------
@@ -100,6 +115,7 @@ def trace_result(path: str | os.PathLike, *, require_sha256: str | None = None) 
                     "complete", require_sha256):
                 return None
             energy_error = f["energy_error"][()]
+            events = _event_counts(f)
     except (OSError, KeyError) as err:
         raise TraceError(f"{os.fspath(path)}: unreadable trace ({err})") from None
     steps = int(attrs["steps_done"] or 0)
@@ -112,6 +128,7 @@ def trace_result(path: str | os.PathLike, *, require_sha256: str | None = None) 
         "final_energy_error": float(energy_error[-1]) if energy_error.size else math.nan,
         "wall_time_s": wall,
         "steps_per_second": steps / wall if wall > 0.0 else math.nan,
+        **events,
         "error": "" if status == "complete" else str(attrs["message"] or ""),
     }
 

@@ -20,7 +20,7 @@ class Checkpointer:
     """Checkpoints of one run, taken by the runner's loop at points where state and samples agree.
 
     ``loop`` arguments are the runner's loop: ``sim``, ``samples``, ``last_step``, ``last_time``,
-    ``e0``, ``max_err``, ``safe``, ``diverged`` and ``wall()``.
+    ``e0``, ``scale``, ``max_err``, ``safe``, ``diverged`` and ``wall()``.
     """
 
     def __init__(self, scenario: Scenario, sink: Any, start: RunStart | None, force: bool) -> None:
@@ -61,6 +61,7 @@ class Checkpointer:
             last_sample_step=loop.last_step if loop.samples else -1, integrator=sc.integrator,
             scenario_sha256=sc.sha256, scenario=sc.to_yaml(), scenario_name=sc.name, scenario_source=sc.source,
             resumes=self.resumes, force=self.force, E0=math.nan if loop.e0 is None else loop.e0,
+            energy_scale=loop.scale,
             max_abs_energy_error=loop.max_err if loop.samples else math.nan, last_sample_time=loop.last_time,
             wall_time_s=loop.wall())
 

@@ -42,11 +42,15 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
     key paths (every combination runs) or a list of `cases`. Running the same
     command again finishes an interrupted sweep. See docs/batch.md.
 
-    Exit status: 0 when every run finished (complete or diverged: both are
-    results), 1 when a run failed or, with --skip-invalid, a case was invalid
-    (the errors are in the summary), 2 for an invalid sweep or an unreachable
-    cluster, 130 after Ctrl-C (the summary lists what finished; run the same
-    command again to finish the sweep).
+    Exit status: 0 when every run finished (complete, diverged, or halted at
+    an event the scenario asked to halt on: all are results), 1 when a run
+    failed or, with --skip-invalid, a case was invalid (the errors are in the
+    summary), 2 for an invalid sweep or an unreachable cluster, 130 after
+    Ctrl-C (the summary lists what finished; run the same command again to
+    finish the sweep).
+
+    The summary has a column per kind of event (encounters, collisions,
+    escapes, unresolved) read from each trace's events table.
 
     \b
     Examples:
@@ -81,7 +85,7 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
         bar.close()
     click.echo(format_table(outcome.rows, sweep.params))
     counts = outcome.counts
-    parts = [f"{counts[s]} {s}" for s in ("complete", "diverged", "failed", "invalid") if counts[s]]
+    parts = [f"{counts[s]} {s}" for s in ("complete", "diverged", "halted", "failed", "invalid") if counts[s]]
     click.echo(f"{len(outcome.rows)} runs: {', '.join(parts)}; {outcome.resumed} reused from earlier traces. "
                f"Summary: {outcome.files[0]}")
     problems = [f"{counts['failed']} run(s) failed"] if counts["failed"] else []
@@ -96,7 +100,7 @@ def _interrupted(outcome: Any) -> str:
     if outcome is None:  # a bare KeyboardInterrupt: it came before anything was submitted
         return "interrupted before any run started; run the same command again to start the sweep"
     counts = outcome.counts
-    done = counts["complete"] + counts["diverged"] + counts["failed"]
+    done = counts["complete"] + counts["diverged"] + counts["halted"] + counts["failed"]
     where = f"traces in {outcome.outdir / 'runs'}, summary in {outcome.files[0]}"
     if not counts["not run"]:
         return f"interrupted, but all {done} run(s) had finished; {where}"

@@ -11,6 +11,9 @@ import click
 from orbitsim.cli.errors import reports_errors
 from orbitsim.cli.options import trace_argument
 
+#: Events listed one per line; the rest are counted ("... N more"): a run can log thousands of
+#: encounters, and `info` is a glance, the whole table is in the trace.
+SHOWN_EVENTS = 10
 #: Attributes shown in the header; the rest are listed under "attributes".
 _HEADER = ("format", "format_version", "orbitsim_version", "status", "message", "scenario_name",
            "scenario_source", "scenario_sha256", "integrator", "integrator_settings", "dt", "steps_requested",
@@ -25,6 +28,10 @@ _HEADER = ("format", "format_version", "orbitsim_version", "status", "message", 
 @reports_errors
 def command(trace: str, show_scenario: bool) -> None:
     """Show what is in TRACE.h5: status, run settings, samples, datasets and their shapes.
+
+    For a run with events: the count of each kind, the first 10 events, and
+    the bodies that left the run (merged or removed); for a run that recorded
+    orbital elements, their primary and shape.
 
     Also its checkpoint: the state the run stopped in and whether `orbitsim resume` or
     `orbitsim run --from` can continue it. Given a checkpoint (OUT.h5.ckpt), or the output of a
@@ -54,6 +61,7 @@ def command(trace: str, show_scenario: bool) -> None:
     if show_scenario:
         click.echo(attrs.get("scenario", ""), nl=False)
         return
+    sections = _event_lines(trace, summary["n_bodies"])  # read first: a damaged table is one line, nothing before
     click.echo(f"trace:    {summary['path']}")
     for key in _HEADER:
         if key in attrs and attrs[key] != "":
@@ -63,6 +71,8 @@ def command(trace: str, show_scenario: bool) -> None:
         span += " (over the samples kept, the last finite ones; then the run diverged)"
     click.echo(f"samples:  {summary['n_samples']}{span}")
     click.echo(f"bodies:   {summary['n_bodies']}")
+    for line in sections:  # none for a trace without events or elements
+        click.echo(line)
     click.echo("datasets:")
     for name, shape in sorted(summary["shapes"].items()):
         click.echo(f"  {name:<20} {shape}")
@@ -77,6 +87,36 @@ def command(trace: str, show_scenario: bool) -> None:
     if writer is not None:
         click.echo(f"writer:   {describe_holder(writer)} is writing this output now; it replaces this file "
                    "when it ends")
+
+
+def _event_lines(path: str, n_bodies: int) -> list[str]:
+    """The ``elements:``, ``events:`` and ``removed:`` sections, each only when the trace has its
+    datasets (docs/trace.md), so a trace without events prints what it always printed."""
+    import h5py
+
+    from orbitsim.analysis.trace_events import bodies_left, elements_info, event_counts, first_events, format_time
+
+    with h5py.File(path, "r") as f:
+        elements, counts = elements_info(f), event_counts(f)
+        shown, left = first_events(f, SHOWN_EVENTS), bodies_left(f)
+    lines = []
+    if elements is not None:
+        lines.append(f"elements: {', '.join(elements.names)}, each {elements.shape}, primary {elements.primary} "
+                     "(orbitsim plot --elements)")
+    if counts is not None:
+        total = sum(counts.values())
+        lines.append(f"events:   {total} (" + ", ".join(f"{kind} {n}" for kind, n in counts.items()) + ")")
+        width = max((len(e.kind) for e in shown), default=0)
+        lines += [f"  t = {format_time(e.time):<14} {e.kind:<{width}}  {e.details}" for e in shown]
+        if total > len(shown):
+            lines.append(f"  ... {total - len(shown)} more (the trace's events table has them all)")
+    if left is not None:
+        lines.append(f"removed:  {len(left)} of {n_bodies} bodies left the run" if left else
+                     f"removed:  none of the {n_bodies} bodies left the run")
+        width = max((len(b.name) for b in left), default=0)
+        lines += [f"  {b.name:<{width}}  {f'merged into {b.into}' if b.into else 'removed'} at t = "
+                  f"{format_time(b.time)} (step {b.step})" for b in left]
+    return lines
 
 
 def _checkpoint_info(path: str, show_scenario: bool) -> None:

@@ -10,9 +10,11 @@ import numpy as np
 
 from orbitsim._jit import jit_inline
 
-#: (iconf, fconf, radii, prev, body, pair_i, pair_f, ev_i, ev_f, counts, best, attractor)
+#: (iconf, fconf, radii, prev, body, pair_i, pair_f, ev_i, ev_f, counts, best, attractor, hill): ``best``
+#: and ``attractor`` (N,) are each body's strongest pull and its source this step, ``hill`` (2, N)
+#: each body's distance to the heaviest body and an upper bound of its Hill factor (scratch).
 WATCH_LAYOUT = ("iconf", "fconf", "radii", "prev", "body", "pair_i", "pair_f", "ev_i", "ev_f", "counts", "best",
-                "attractor")
+                "attractor", "hill")
 
 # iconf: int64 configuration
 C_DETECT, C_RESOLVE, C_ENC, C_ENC_HALT, C_ESCAPE, C_UNRES, C_CENTRAL = range(7)
@@ -31,9 +33,9 @@ B_UNRESOLVED, B_ESCAPED = 1, 2
 P_I, P_J, P_START, P_LAST, P_KIND = range(5)
 PAIR_I_COLS = 5
 PAIR_ENCOUNTER, PAIR_CONTACT = 0, 1
-# pair_f columns: closest approach so far
-PF_DMIN, PF_TMIN, PF_VMIN = range(3)
-PAIR_F_COLS = 3
+# pair_f columns: closest approach so far, and the distance limit then
+PF_DMIN, PF_TMIN, PF_VMIN, PF_LIMIT = range(4)
+PAIR_F_COLS = 4
 # ev_i / ev_f columns of the event buffer
 E_KIND, E_STEP, E_I, E_J, E_START = range(5)
 EV_I_COLS = 5
@@ -92,5 +94,6 @@ def open_pair(watch, i, j, kind, n_done):
     pair_f[p, PF_DMIN] = np.inf
     pair_f[p, PF_TMIN] = np.nan
     pair_f[p, PF_VMIN] = np.nan
+    pair_f[p, PF_LIMIT] = np.nan
     counts[N_PAIRS] = p + 1
     return p

@@ -36,7 +36,7 @@ class Event:
     encounter, else the time of ``step``. ``distance`` and ``speed`` are the separation and
     relative speed then (the distance from the centre of mass for an escape). ``extra`` depends on
     the kind: an escape's specific energy, an unresolved step's suggested dt (eta tau), a
-    collision's r_i + r_j, an encounter's distance limit (nan when not recorded), the number of
+    collision's r_i + r_j, an encounter's distance limit at its closest approach, the number of
     events a full buffer lost (kind ``lost``, never expected: the buffer grows). ``outcome``
     is one of :data:`OUTCOMES`; ``into`` the body a merged one joined.
     """
@@ -59,8 +59,8 @@ def describe(event: Event, names: Sequence[str]) -> str:
     a = names[event.i] if 0 <= event.i < len(names) else f"body {event.i}"
     b = names[event.j] if 0 <= event.j < len(names) else ""
     if event.kind == "encounter":
-        text = (f"{a} and {b}: closest {event.distance:.6g} at t = {event.time:.10g}, relative speed "
-                f"{event.speed:.6g} (steps {event.step_start}-{event.step})")
+        text = (f"{a} and {b}: closest {event.distance:.6g} (within {event.extra:.6g}) at t = {event.time:.10g}, "
+                f"relative speed {event.speed:.6g} (steps {event.step_start}-{event.step})")
     elif event.kind == "collision":
         text = (f"{a} and {b} touch: separation {event.distance:.6g} < r_i + r_j = {event.extra:.6g}, relative speed "
                 f"{event.speed:.6g}")

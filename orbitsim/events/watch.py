@@ -55,7 +55,7 @@ def build_watch(config: EventsConfig, masses: np.ndarray, radii: np.ndarray, G: 
             np.zeros((max(MIN_PAIRS, PAIRS_PER_BODY * n), wl.PAIR_F_COLS)),
             np.zeros((max(MIN_EVENTS, EVENTS_PER_BODY * n), wl.EV_I_COLS), dtype=np.int64),
             np.zeros((max(MIN_EVENTS, EVENTS_PER_BODY * n), wl.EV_F_COLS)), np.zeros(4, dtype=np.int64),
-            np.zeros(n), np.zeros(n, dtype=np.int64))
+            np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros((2, n)))
 
 
 def drain(watch: tuple[np.ndarray, ...], alive: np.ndarray) -> tuple[list[Event], tuple[np.ndarray, ...]]:
@@ -63,7 +63,12 @@ def drain(watch: tuple[np.ndarray, ...], alive: np.ndarray) -> tuple[list[Event]
     scenario's), and the watch to go on with: the same one emptied, or, after a loss, one with
     buffers twice the size (the loss is reported as a ``lost`` event)."""
     ev_i, ev_f, counts = watch[7], watch[8], watch[9]
-    events = [_event(ev_i[k], ev_f[k], alive) for k in range(int(counts[wl.N_EVENTS]))]
+    used = int(counts[wl.N_EVENTS])
+    events = [_event(ev_i[k], ev_f[k], alive) for k in range(used)]
+    # Cleared, not just forgotten: a checkpoint saves the buffer, and a resumed run's must hold the
+    # same bits as an uninterrupted one's, whatever was drained before.
+    ev_i[:used] = 0
+    ev_f[:used] = 0.0
     lost = int(counts[wl.N_LOST])
     counts[wl.N_EVENTS] = 0
     counts[wl.N_LOST] = 0
@@ -103,7 +108,7 @@ def open_encounters(watch: tuple[np.ndarray, ...], alive: np.ndarray, involving:
             continue
         events.append(Event("encounter", int(pair_i[p, wl.P_LAST]), int(pair_i[p, wl.P_START]),
                             float(pair_f[p, wl.PF_TMIN]), int(alive[i]), int(alive[j]), float(pair_f[p, wl.PF_DMIN]),
-                            float(pair_f[p, wl.PF_VMIN])))
+                            float(pair_f[p, wl.PF_VMIN]), float(pair_f[p, wl.PF_LIMIT])))
     return events
 
 
@@ -112,7 +117,7 @@ def shrink_watch(watch: tuple[np.ndarray, ...], keep: np.ndarray, radii: np.ndar
     """The watch of the bodies ``keep`` (current indices, increasing) with their new ``radii`` and
     ``masses``: episodes of removed bodies are dropped (the caller logs them first), the others
     renumbered."""
-    iconf, fconf, _, _, body, pair_i, pair_f, ev_i, ev_f, counts, _, _ = watch
+    iconf, fconf, _, _, body, pair_i, pair_f, ev_i, ev_f, counts, _, _, _ = watch
     n_old, n = int(body.shape[0]), int(keep.shape[0])
     new_index = np.full(n_old, -1, dtype=np.int64)
     new_index[keep] = np.arange(n)
@@ -129,7 +134,7 @@ def shrink_watch(watch: tuple[np.ndarray, ...], keep: np.ndarray, radii: np.ndar
     new_iconf = iconf.copy()
     new_iconf[wl.C_CENTRAL] = int(np.argmax(masses)) if n else 0
     return (new_iconf, fconf.copy(), np.array(radii, dtype=np.float64), np.zeros((2, 3, n)), body[keep].copy(),
-            new_pair_i, new_pair_f, ev_i, ev_f, new_counts, np.zeros(n), np.zeros(n, dtype=np.int64))
+            new_pair_i, new_pair_f, ev_i, ev_f, new_counts, np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros((2, n)))
 
 
 def watch_arrays(watch: tuple[np.ndarray, ...]) -> dict[str, np.ndarray]:

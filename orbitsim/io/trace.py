@@ -11,11 +11,14 @@ Root attributes written by the writer itself
 ``format_version``     ``1`` (checked by the reader)
 ``orbitsim_version``   version of the writing orbitsim
 ``status``             ``"running"`` while written, then ``"complete"``,
-                       ``"interrupted"`` or ``"diverged"``
+                       ``"interrupted"``, ``"diverged"`` or ``"halted"`` (an event the
+                       scenario's ``events:`` asked to halt on)
 ``steps_done``         steps integrated (set at close; default: last sample's step)
 ``wall_time_s``        wall-clock seconds of the run (set at close)
 ``message``            free text, e.g. the divergence message (``""`` by default)
 ``E0``                 energy of the first sample (present once a sample was written)
+``energy_scale``       what ``energy_error`` is relative to: |E0|, or T0 + |U0| when
+                       |E0| < 1e-3 (T0 + |U0|) (:func:`orbitsim.io.schema.energy_scale`)
 ``scenario_sha256``    hex SHA-256 of the UTF-8 ``scenario`` text, unless supplied
 ``provenance_<key>``   one attribute per key of :func:`orbitsim.provenance.provenance`,
                        flattened into the root so ``h5dump -A`` shows them directly
@@ -29,11 +32,20 @@ Datasets (per-sample ones are resizable along S, chunked, gzip+shuffle compresse
 
 * ``time`` (S,), ``step`` (S,) int64 step index of each sample
 * ``kinetic``, ``potential``, ``energy`` (S,)
-* ``energy_error`` (S,): ``(E - E0) / |E0|``; when ``E0 == 0`` the relative error
-  is undefined and the absolute error ``E - E0`` is stored instead
+* ``energy_error`` (S,): ``(E + energy_offset - E0) / energy_scale``
+* ``energy_offset`` (S,), a run with events only: the energy merges and removals took out so
+  far (E + offset is what the integrator conserves)
 * ``momentum``, ``angular_momentum`` (S, 3)
-* ``positions``, ``velocities`` (S, N, 3): only when positions are recorded
-* group ``bodies``: ``names`` (N,) variable-length UTF-8 strings, ``masses`` (N,)
+* ``positions``, ``velocities`` (S, N, 3): only when positions are recorded; NaN for a body
+  from the step it was merged or removed on
+* group ``elements`` (``output.elements``): ``a``, ``e``, ``inc``, ``Omega``, ``omega``, ``f``,
+  ``M`` (S, N), degrees for angles, attribute ``primary``
+* group ``bodies``: ``names`` (N,) variable-length UTF-8 strings, ``masses`` (N,); with events
+  also ``radii``, ``final_radii``, ``final_masses`` (N,), ``removed_step`` (N,) int64 (-1:
+  never), ``removed_time`` (N,) (nan: never), ``merged_into`` (N,) int64 (-1: not merged)
+* group ``events`` (a run with events): one row per event, columns ``step``, ``step_start``,
+  ``time``, ``kind``, ``i``, ``j``, ``distance``, ``speed``, ``extra``, ``outcome``, ``into``
+  and ``details`` (:class:`orbitsim.events.log.Event` says what each holds)
 * group ``checkpoint`` (optional): the state the run stopped in, so that it can be resumed or
   extended bit for bit; its layout is documented in :mod:`orbitsim.io.checkpoint`
 

@@ -65,6 +65,9 @@ def _read_unresolved(section: Fields) -> Unresolved | None:
         return Unresolved()
     if value is False:
         return None
+    if not isinstance(value, dict):
+        raise ScenarioError(f"expected true, false or {{eta: <number>}}, got {describe(value)}",
+                            key="events.unresolved")
     unres = Fields(value, "events.unresolved", ("eta",), "unresolved section")
     return Unresolved(eta=unres.number("eta", 1.0, positive=True))
 
@@ -93,5 +96,4 @@ def check_elements_output(record: Any, primary: Any, names: Sequence[str]) -> No
     if not isinstance(record, bool):
         raise ScenarioError(f"expected true or false, got {describe(record)}", key="output.elements")
     if primary not in ELEMENT_PRIMARIES and primary not in names:
-        raise ScenarioError(f"output.primary must be heaviest, jacobi or a body name, got {describe(primary)}",
-                            key="output.primary")
+        raise ScenarioError(f"must be heaviest, jacobi or a body name, got {describe(primary)}", key="output.primary")

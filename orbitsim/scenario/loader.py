@@ -180,6 +180,9 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     positions = output.boolean("positions", None)
     elements = output.boolean("elements", False)
     primary = output.string("primary", "heaviest")
+    if output.has("primary") and not elements:
+        raise output.error("primary", "output.primary chooses the primary of the recorded orbital elements: it "
+                                      "needs output.elements: true")
     checkpoint_every, checkpoint_seconds = _read_checkpoint(output)
     bodies = read_bodies(top, G, units)
     m, x, v = bodies.arrays()

@@ -1,0 +1,129 @@
+"""What the events watch costs per step, beside the same run without it.
+
+Usage::
+
+    .venv/bin/python benchmarks/events_overhead.py [--n 5 50 500] [--steps 200000] [--repeats 5]
+    .venv/bin/python benchmarks/events_overhead.py --baseline /path/to/an/older/checkout
+
+For each N (a star and N - 1 planets, ``orbitsim.bench.systems.planets``, verlet, dt = 1e-3) the
+same steps are taken with no ``events:`` (the plain fixed-dt loop), with an events section that
+watches nothing (the cost of stepping one step at a time and coming back to check), and with each
+check alone and all together. Nothing happens in these systems, so this is the price of looking.
+The variants run round-robin, ``--repeats`` times each, and the table shows the median time per
+step and its ratio to the run without events from the same rounds (the machine is shared and
+noisy; only same-run ratios mean anything).
+
+``--baseline DIR`` instead times runs *without* events in this checkout and in another one (say,
+the commit before events existed), alternating processes, so that "a run without events is as
+fast as before" is measured, not assumed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+DT = 1e-3
+
+
+def variants() -> dict[str, object]:
+    from orbitsim.events.config import Collisions, Encounters, Escape, EventsConfig
+
+    return {"no events": None, "events: {unresolved: false}": EventsConfig(unresolved=None),
+            "unresolved": EventsConfig(),
+            "collisions": EventsConfig(collisions=Collisions(), unresolved=None),
+            "encounters": EventsConfig(encounters=Encounters(distance=1e-3), unresolved=None),
+            "escape": EventsConfig(escape=Escape(distance=1e3), unresolved=None),
+            "all four": EventsConfig(collisions=Collisions(), encounters=Encounters(distance=1e-3),
+                                     escape=Escape(distance=1e3))}
+
+
+def time_per_step(n: int, events: object, steps: int) -> float:
+    """Seconds per step of one run (after a warm-up run that compiles)."""
+    from orbitsim.bench.systems import planets
+    from orbitsim.sampling import EveryPlan
+    from orbitsim.simulation import Simulation
+
+    m, x, v = planets(n)
+    sim = Simulation(m, x, v, "verlet", DT, events=events, radii=np.full(n, 1e-6))
+    start = time.perf_counter()
+    for _ in sim.chunks(EveryPlan(steps, steps), record_positions=False):
+        pass
+    return (time.perf_counter() - start) / steps
+
+
+def table(sizes: list[int], steps: int, repeats: int) -> None:
+    cases = variants()
+    for n in sizes:
+        work = max(1000, steps // max(1, n * n // 25))
+        for events in cases.values():  # compile and warm up
+            time_per_step(n, events, 100)
+        times: dict[str, list[float]] = {name: [] for name in cases}
+        for _ in range(repeats):
+            for name, events in cases.items():
+                times[name].append(time_per_step(n, events, work))
+        base = statistics.median(times["no events"])
+        print(f"\nN = {n} ({work} steps a run, median of {repeats})")
+        print(f"  {'watch':<30} {'ns/step':>10} {'x no events':>12}")
+        for name, values in times.items():
+            med = statistics.median(values)
+            print(f"  {name:<30} {med * 1e9:>10.0f} {med / base:>12.2f}")
+
+
+_CHILD = """
+import sys, time
+from orbitsim.bench.systems import planets
+from orbitsim.sampling import EveryPlan
+from orbitsim.simulation import Simulation
+n, steps = int(sys.argv[1]), int(sys.argv[2])
+m, x, v = planets(n)
+def once(k):
+    sim = Simulation(m, x, v, "verlet", 1e-3)
+    t = time.perf_counter()
+    for _ in sim.chunks(EveryPlan(k, k), record_positions=False):
+        pass
+    return (time.perf_counter() - t) / k
+once(100)
+print(min(once(steps) for _ in range(3)))
+"""
+
+
+def baseline(other: str, sizes: list[int], steps: int, repeats: int) -> None:
+    """Runs without events here and in ``other`` (a checkout), alternating processes."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    for n in sizes:
+        work = max(1000, steps // max(1, n * n // 25))
+        ratios = []
+        for _ in range(repeats):
+            result = {}
+            for label, root in (("this", here), ("baseline", other)):
+                env = dict(os.environ, PYTHONPATH=root)
+                out = subprocess.run([sys.executable, "-c", _CHILD, str(n), str(work)], env=env, check=True,
+                                     capture_output=True, text=True)
+                result[label] = float(out.stdout.strip().splitlines()[-1])
+            ratios.append(result["this"] / result["baseline"])
+        print(f"N = {n}: time per step without events, this checkout / baseline: median "
+              f"{statistics.median(ratios):.3f} (rounds: {', '.join(f'{r:.3f}' for r in ratios)})")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, nargs="+", default=[5, 50, 500])
+    parser.add_argument("--steps", type=int, default=200_000)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--baseline", metavar="DIR", default=None)
+    args = parser.parse_args()
+    if args.baseline:
+        baseline(args.baseline, args.n, args.steps, args.repeats)
+    else:
+        table(args.n, args.steps, args.repeats)
+
+
+if __name__ == "__main__":
+    main()
