@@ -17,6 +17,7 @@ import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from test_info_events import HEAD_ON as INFO_HEAD_ON
 
 from orbitsim.batch.summary import column_names, events_cell, format_table, write_csv, write_h5
 from orbitsim.batch.task import failed_result, trace_result
@@ -25,19 +26,7 @@ from orbitsim.cli.main import cli
 COUNTS = ("encounters", "collisions", "escapes", "unresolved")
 
 #: Two bodies thrown at each other (they touch near t = 1.88) and a distant star.
-HEAD_ON = """\
-name: head_on
-integrator: verlet
-dt: 0.01
-steps: 300
-output: {every: 10}
-events:
-  collisions: {detect: line, resolve: merge}
-bodies:
-  - {name: left, m: 1.0e-3, r: 0.05, x: [-1, 0, 0], v: [0.5, 0, 0]}
-  - {name: right, m: 1.0e-3, r: 0.05, x: [1, 0, 0], v: [-0.5, 0, 0]}
-  - {name: star, m: 1.0, x: [0, 5, 0], v: [0, 0, 0]}
-"""
+HEAD_ON = INFO_HEAD_ON.replace("RESOLVE", "merge")
 
 #: merge (complete, 1 collision); halt (halted at the collision); no events section (all 0);
 #: merge with encounters below 0.3 (1 collision, 1 encounter cut short by the merge).
