@@ -73,7 +73,9 @@ class Fields:
 
     def __init__(self, value: Any, path: str, allowed: Iterable[str], what: str = "mapping") -> None:
         if not isinstance(value, Mapping):
-            raise ScenarioError(f"expected a {what} of keys and values, got {describe(value)}", key=path or None)
+            article = "an" if what[:1] in "aeiou" else "a"
+            raise ScenarioError(f"expected {article} {what} of keys and values, got {describe(value)}",
+                                key=path or None)
         self.data = value
         self.path = path
         self.allowed = tuple(allowed)
