@@ -13,7 +13,10 @@ construction (``tests/test_sampling.py`` checks this against the reference in ``
 * :class:`ExplicitPlan`: given indices (``simulate(sample_steps=...)``).
 
 :meth:`SamplePlan.after_step` drops the indices up to a step, which is where a resumed run
-continues. This module imports only numpy: a scenario can count its samples without Numba.
+continues. :class:`TargetWindow` and :func:`next_budget` are how
+:class:`~orbitsim.simulation.Simulation` cuts a plan into jitted calls of about
+:data:`TARGET_CALL_SECONDS`. This module imports only numpy: a scenario can count its samples
+without Numba.
 """
 
 from __future__ import annotations
@@ -25,8 +28,19 @@ from collections.abc import Iterator
 
 import numpy as np
 
-__all__ = ["BLOCK_SAMPLES", "EveryPlan", "ExplicitPlan", "IntervalPlan", "SamplePlan", "SimulationError",
-           "sample_steps_every", "sample_steps_interval"]
+__all__ = [
+    "BLOCK_SAMPLES",
+    "TARGET_CALL_SECONDS",
+    "EveryPlan",
+    "ExplicitPlan",
+    "IntervalPlan",
+    "SamplePlan",
+    "SimulationError",
+    "TargetWindow",
+    "next_budget",
+    "sample_steps_every",
+    "sample_steps_interval",
+]
 
 #: Most step indices in one block: 512 KiB of int64, small beside a run's sample buffers.
 BLOCK_SAMPLES = 2**16
@@ -180,3 +194,62 @@ def sample_steps_every(n_steps: int, every: int) -> np.ndarray:
 def sample_steps_interval(n_steps: int, dt: float, interval: float) -> np.ndarray:
     """Step indices for samples every ``interval`` time units, on whole steps (see :class:`IntervalPlan`)."""
     return IntervalPlan(n_steps, dt, interval).steps()
+
+
+#: Wall time one jitted call aims for: long enough that the Python round trip is noise (~20 us),
+#: short enough that Ctrl-C and progress updates feel immediate.
+TARGET_CALL_SECONDS = 0.2
+
+
+class TargetWindow:
+    """The next planned targets of a run, drawn from the plan's blocks as the run consumes them.
+
+    It holds at least ``want`` targets (or all that are left), one call's worth of samples, so
+    each call sees the same targets as it would in the plan's whole array: the calls, and
+    therefore the chunks, are cut exactly as if the whole plan had been built up front.
+    """
+
+    def __init__(self, plan: SamplePlan, want: int) -> None:
+        self._blocks = plan.blocks()
+        self.want = want
+        self.exhausted = False
+        self.pending = np.zeros(0, dtype=np.int64)
+        self._fill()
+
+    def _fill(self) -> None:
+        parts, size = [self.pending], self.pending.size
+        while size < self.want and not self.exhausted:
+            block = next(self._blocks, None)
+            if block is None:
+                self.exhausted = True
+            else:
+                parts.append(block)
+                size += block.size
+        if len(parts) > 1:
+            self.pending = np.concatenate(parts)
+
+    def max_samples(self) -> int:
+        """Samples one call may record: ``want``, or fewer when the whole plan is shorter."""
+        return max(1, min(self.pending.size, self.want))
+
+    def plan_call(self, n_done: int, budget: int) -> tuple[np.ndarray, np.ndarray]:
+        """Targets and record flags for one jitted call: the next samples that fit in ``budget``
+        steps, or an intermediate unrecorded target when the next sample is farther away."""
+        limit = n_done + budget
+        stop = min(int(np.searchsorted(self.pending, limit, side="right")), self.want)
+        if stop == 0:
+            return np.array([limit], dtype=np.int64), np.zeros(1, dtype=np.bool_)
+        return self.pending[:stop].copy(), np.ones(stop, dtype=np.bool_)
+
+    def consume(self, k: int) -> None:
+        """Drop the ``k`` targets a call has recorded, and top the window up from the plan."""
+        self.pending = self.pending[k:]
+        self._fill()
+
+
+def next_budget(budget: int, elapsed: float) -> int:
+    """Scale the step budget so the next call takes about :data:`TARGET_CALL_SECONDS`."""
+    if elapsed <= 0.0:
+        return budget * 4
+    factor = min(4.0, max(0.25, TARGET_CALL_SECONDS / elapsed))
+    return max(1, int(budget * factor))

@@ -25,10 +25,13 @@ import numpy as np
 from orbitsim.integrators.base import IntegratorSpec
 from orbitsim.results import SampleBuffers, SampleChunk, SimulationResult, collect_result, relative_energy_error
 from orbitsim.sampling import (
+    TARGET_CALL_SECONDS,
     EveryPlan,
     ExplicitPlan,
     SamplePlan,
     SimulationError,
+    TargetWindow,
+    next_budget,
     sample_steps_every,
     sample_steps_interval,
 )
@@ -36,9 +39,6 @@ from orbitsim.sampling import (
 __all__ = ["MAX_BUFFER_BYTES", "TARGET_CALL_SECONDS", "SampleChunk", "Simulation", "SimulationError",
            "SimulationResult", "relative_energy_error", "sample_steps_every", "sample_steps_interval", "simulate"]
 
-#: Wall time one jitted call aims for: long enough that the Python round trip is noise (~20 us),
-#: short enough that Ctrl-C and progress updates feel immediate.
-TARGET_CALL_SECONDS = 0.2
 
 #: Upper bound on the sample buffer of one call, so recording positions stays flat in memory.
 MAX_BUFFER_BYTES = 32 * 2**20
@@ -204,7 +204,7 @@ class Simulation:
         keep_positions = record_positions
         record_positions = record_positions or self.elements is not None  # elements come from the states
         per_sample = (2 * 3 * self.n * 8 if record_positions else 0) + 80
-        targets = _TargetWindow(plan, max(1, MAX_BUFFER_BYTES // per_sample))
+        targets = TargetWindow(plan, max(1, MAX_BUFFER_BYTES // per_sample))
         if targets.pending.size == 0:
             return
         if targets.pending[0] < self.steps_done:
@@ -247,7 +247,7 @@ class Simulation:
             if watcher is not None and watcher.halted is not None:
                 yield self._halt_sample(buffers, keep_positions)
                 return
-            budget = _next_budget(budget, elapsed)
+            budget = next_budget(budget, elapsed)
 
     def _halt_sample(self, buffers: SampleBuffers, keep_positions: bool) -> SampleChunk:
         """The sample of the state a run halted in (whatever the plan): a trace then ends where the
@@ -283,60 +283,6 @@ class Simulation:
         """Indices of bodies whose position or velocity is not finite."""
         bad = ~(np.all(np.isfinite(self.pos), axis=0) & np.all(np.isfinite(self.vel), axis=0))
         return [int(k) for k in np.flatnonzero(bad)]
-
-
-class _TargetWindow:
-    """The next planned targets of a run, drawn from the plan's blocks as the run consumes them.
-
-    It holds at least ``want`` targets (or all that are left), one call's worth of samples, so
-    each call sees the same targets as it would in the plan's whole array: the calls, and
-    therefore the chunks, are cut exactly as if the whole plan had been built up front.
-    """
-
-    def __init__(self, plan: SamplePlan, want: int) -> None:
-        self._blocks = plan.blocks()
-        self.want = want
-        self.exhausted = False
-        self.pending = np.zeros(0, dtype=np.int64)
-        self._fill()
-
-    def _fill(self) -> None:
-        parts, size = [self.pending], self.pending.size
-        while size < self.want and not self.exhausted:
-            block = next(self._blocks, None)
-            if block is None:
-                self.exhausted = True
-            else:
-                parts.append(block)
-                size += block.size
-        if len(parts) > 1:
-            self.pending = np.concatenate(parts)
-
-    def max_samples(self) -> int:
-        """Samples one call may record: ``want``, or fewer when the whole plan is shorter."""
-        return max(1, min(self.pending.size, self.want))
-
-    def plan_call(self, n_done: int, budget: int) -> tuple[np.ndarray, np.ndarray]:
-        """Targets and record flags for one jitted call: the next samples that fit in ``budget``
-        steps, or an intermediate unrecorded target when the next sample is farther away."""
-        limit = n_done + budget
-        stop = min(int(np.searchsorted(self.pending, limit, side="right")), self.want)
-        if stop == 0:
-            return np.array([limit], dtype=np.int64), np.zeros(1, dtype=np.bool_)
-        return self.pending[:stop].copy(), np.ones(stop, dtype=np.bool_)
-
-    def consume(self, k: int) -> None:
-        """Drop the ``k`` targets a call has recorded, and top the window up from the plan."""
-        self.pending = self.pending[k:]
-        self._fill()
-
-
-def _next_budget(budget: int, elapsed: float) -> int:
-    """Scale the step budget so the next call takes about :data:`TARGET_CALL_SECONDS`."""
-    if elapsed <= 0.0:
-        return budget * 4
-    factor = min(4.0, max(0.25, TARGET_CALL_SECONDS / elapsed))
-    return max(1, int(budget * factor))
 
 
 def simulate(

@@ -29,6 +29,7 @@ import numpy as np
 
 from orbitsim._version import __version__
 from orbitsim.io.durable import replace_durably
+from orbitsim.io.h5layout import FLUSH_BYTES, FLUSH_ROWS, bound_metadata_cache, chunk_shape
 from orbitsim.io.h5safe import H5_WRITE_ERRORS, create, discard, in_memory, io_failure, surfaced, vfd_handle
 from orbitsim.io.schema import (
     BODY_ARRAYS,
@@ -43,40 +44,6 @@ from orbitsim.io.schema import (
 from orbitsim.provenance import provenance
 
 __all__ = ["TraceWriter"]
-
-_SERIES_CHUNK_ROWS = 1024  # 8-24 KiB chunks for the small series
-_BODY_CHUNK_BYTES = 512 * 1024  # keeps positions chunks under 1 MiB for any N
-_FLUSH_ROWS = 1024
-_FLUSH_BYTES = 8 * 1024 * 1024  # bounds the write buffer when N is large
-#: Ceiling of HDF5's metadata cache while a trace is written. The writer only appends, so it needs
-#: the newest nodes of each chunk index; under the adaptive default (up to 32 MiB) the cache grew
-#: by ~13 MB over a 10^7-sample run (the memory probe of ``orbitsim bench``), under this one ~4 MB.
-_METADATA_CACHE_BYTES = 4 * 2**20
-
-
-def _bound_metadata_cache(f: h5py.File) -> None:
-    """Hold the file's metadata cache between 1 MiB and :data:`_METADATA_CACHE_BYTES`."""
-    config = f.id.get_mdc_config()
-    config.set_initial_size = True
-    config.initial_size = config.min_size = 2**20
-    config.max_size = _METADATA_CACHE_BYTES
-    f.id.set_mdc_config(config)
-
-
-def _body_chunks(n_bodies: int) -> tuple[int, int, int]:
-    """Chunk shape for (S, N, 3) datasets: as many samples as fit in ~512 KiB."""
-    per_sample = max(n_bodies, 1) * 3 * 8
-    if per_sample <= _BODY_CHUNK_BYTES:
-        return (min(_SERIES_CHUNK_ROWS, _BODY_CHUNK_BYTES // per_sample), max(n_bodies, 1), 3)
-    # One sample alone exceeds the budget: split along the body axis too.
-    return (1, _BODY_CHUNK_BYTES // 24, 3)
-
-
-def _series_chunks(tail: tuple[int, ...]) -> tuple[int, ...]:
-    """Chunk shape for (S, *tail) series: 1024 samples, fewer when a sample is wide (``(S, N)``)."""
-    width = max(1, int(np.prod(tail))) * 8
-    return (max(1, min(_SERIES_CHUNK_ROWS, _BODY_CHUNK_BYTES // width)), *tail)
-
 
 def _attr_value(key: str, value: Any) -> Any:
     """Convert `value` into something h5py stores as an attribute, or raise TypeError."""
@@ -170,7 +137,7 @@ class TraceWriter:
         with self._writing():
             self._file = create(self.tmp_path)
             self._handle = vfd_handle(self._file)
-            _bound_metadata_cache(self._file)
+            bound_metadata_cache(self._file)
             self._init_file(self._file, attrs, names, masses)
             for group, values in (group_attrs or {}).items():
                 for key, value in values.items():
@@ -193,7 +160,7 @@ class TraceWriter:
             bodies.create_dataset("masses", data=masses)
             f.copy(bodies, "bodies")
         for name, tail in self._trailing.items():
-            chunks = _body_chunks(self.n_bodies) if len(tail) == 2 else _series_chunks(tail)
+            chunks = chunk_shape(tail, self.n_bodies)
             self._datasets[name] = f.create_dataset(
                 name, shape=(0, *tail), maxshape=(None, *tail), chunks=chunks,
                 dtype=np.int64 if name == "step" else np.float64, compression="gzip", compression_opts=4, shuffle=True)
@@ -279,7 +246,7 @@ class TraceWriter:
         self._buffer_bytes += sum(a.nbytes for a in data.values())
         self._written += energy.shape[0]
         self._last_step = int(data["step"][-1])
-        if self._buffer_rows >= _FLUSH_ROWS or self._buffer_bytes >= _FLUSH_BYTES:
+        if self._buffer_rows >= FLUSH_ROWS or self._buffer_bytes >= FLUSH_BYTES:
             self._write_buffer()
 
     def _write_buffer(self) -> None:
