@@ -311,8 +311,11 @@ def estimate_time(scenario: Scenario, *, threads: int | None = None, steps: int 
     -------
     TimeEstimate or None
         None for a run below :data:`ESTIMATE_MIN_WORK` (not measured at all: it cannot matter), for
-        a thread count the run will refuse, or when the subsample diverged while being timed.
+        a thread count the run will refuse, when the subsample diverged while being timed, or for
+        an adaptive scheme (its step count is not known before it runs).
     """
+    if scenario.adaptive:
+        return None
     from orbitsim._jit import set_num_threads
     from orbitsim.physics.gravity import PARALLEL_MIN_N
     from orbitsim.simulation import Simulation

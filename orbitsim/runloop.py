@@ -59,6 +59,7 @@ class RunSummary:
     message: str = ""
     resumable: bool = False
     events: str = ""
+    scheme_counters: dict[str, Any] | None = None  # an adaptive scheme's own steps (ias15)
 
     @property
     def steps_per_s(self) -> float:
@@ -150,8 +151,8 @@ class RunLoop:
         if sc.record_elements:
             primary = sc.elements_primary
             primary = sc.names.index(primary) if primary in sc.names else primary
-        sim = Simulation(masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.dt, sc.G, sc.softening, 0.0,
-                         threads, dict(sc.integrator_settings), events=sc.events, radii=radii, elements=primary)
+        sim = Simulation(masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.grid_dt, sc.G, sc.softening, 0.0,
+                         threads, sc.run_settings, events=sc.events, radii=radii, elements=primary)
         if self.start_point is not None:
             restore_state(sim, self.start_point.checkpoint.state)
         return sim
@@ -249,6 +250,10 @@ class RunLoop:
             when = f"last sample at t = {self.last_time:g}" if self.samples else "before the first sample"
             message = f"interrupted by {cause} after {taken} of {self.steps} steps ({when})"
             steps_done = final.steps_done if final is not None else self.last_step
+        counters = getattr(self.sim.module, "counters", None) if self.sim is not None else None
+        scheme_counters = counters(self.sim.work) if counters is not None else None
+        if scheme_counters is not None:  # an adaptive scheme's own steps (accepted, rejected, force evaluations)
+            self.sink.set_attrs(**{f"{self.sim.spec.name}_{key}": value for key, value in scheme_counters.items()})
         outcome = watcher.outcome(final_run=status != "interrupted") if watcher is not None else None
         self.sink.close(status, steps_done=steps_done, wall_time_s=wall, message=message, final=final,
                         events=outcome)
@@ -258,7 +263,8 @@ class RunLoop:
             max_abs_energy_error=self.max_err if self.samples else math.nan,
             threads=int(self.sim.threads_used) if self.sim else 0, message=message,
             resumable=status == "interrupted" and final is not None,
-            events=outcome.summary(self.scenario.names) if outcome is not None else "")
+            events=outcome.summary(self.scenario.names) if outcome is not None else "",
+            scheme_counters=scheme_counters)
 
     def _divergence_message(self) -> str:
         if self.energy_failure is not None:

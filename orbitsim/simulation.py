@@ -157,9 +157,13 @@ class Simulation:
         self.n = int(self.m.shape[0])
         self.force = make_force(self.G, self.softening, self.n)
         make_work = getattr(self._module, "make_work", None)
+        old_work = getattr(self, "work", None)
         self.work = (
             make_work(self.m, self.G, self.settings) if make_work else np.zeros((self.spec.work_slots, 3, self.n))
         )
+        carry_over = getattr(self._module, "carry_over", None)
+        if old_work is not None and carry_over is not None:
+            carry_over(old_work, self.work)  # what the scheme keeps across a change of bodies (ias15's clock)
         self.acc = np.zeros((3, self.n))
         self.rows = potential_rows_scratch(self.n)
         G, eps2, slabs, bounds = self.force
@@ -174,8 +178,10 @@ class Simulation:
 
     @property
     def time(self) -> float:
-        """Time of the current state, ``t0 + steps_done * dt``."""
-        return self.t0 + self.steps_done * self.dt
+        """Time of the current state: ``t0 + steps_done * dt``, or an adaptive scheme's own clock."""
+        grid = self.t0 + self.steps_done * self.dt
+        clock_time = getattr(self._module, "clock_time", None)
+        return clock_time(self.work, grid) if clock_time is not None else grid
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Current positions and velocities as (N, 3) copies."""

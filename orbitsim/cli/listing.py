@@ -32,9 +32,11 @@ def command(what: str | None) -> None:
 def _integrators() -> None:
     from orbitsim.integrators.registry import INTEGRATORS
 
-    rows = [(s.name, ", ".join(s.aliases) or "-", str(s.order), "yes" if s.symplectic else "no",
-             "yes" if s.reversible else "no", str(s.force_evals), s.summary) for s in INTEGRATORS]
-    _table(("integrator", "aliases", "order", "symplectic", "reversible", "forces/step", "summary"), rows)
+    rows = [(s.name, ", ".join(s.aliases) or "-", str(s.order), "adaptive" if s.adaptive else "fixed",
+             "yes" if s.symplectic else "no", "yes" if s.reversible else "no", str(s.force_evals),
+             f"{s.summary} [{s.reference}]") for s in INTEGRATORS]
+    _table(("integrator", "aliases", "order", "step", "symplectic", "reversible", "forces/step",
+            "summary [reference]"), rows)
 
 
 def _scenarios() -> None:

@@ -195,8 +195,14 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
     if not quiet:
         rate = rate_text(summary.steps_per_s)
         end = f"t = {summary.end_time:.10g}" if summary.samples else "no samples"
-        click.echo(f"{summary.name}: {summary.status}, {summary.steps_done} of {summary.steps_requested} steps "
-                   f"in {summary.wall_time_s:.3g} s ({rate}), max |dE/E| = {summary.max_abs_energy_error:.3g}, "
+        done = f"{summary.steps_done} of {summary.steps_requested} steps in {summary.wall_time_s:.3g} s ({rate})"
+        own = summary.scheme_counters
+        if own is not None and scenario.adaptive:  # its steps are its own; the grid is the output intervals
+            rate = rate_text(own["steps_accepted"] / summary.wall_time_s if summary.wall_time_s > 0 else math.inf)
+            done = (f"{summary.steps_done} of {summary.steps_requested} output intervals in {summary.wall_time_s:.3g}"
+                    f" s ({scenario.integrator}: {own['steps_accepted']:,} steps, {own['steps_rejected']:,} rejected,"
+                    f" {rate})")
+        click.echo(f"{summary.name}: {summary.status}, {done}, max |dE/E| = {summary.max_abs_energy_error:.3g}, "
                    f"{summary.samples} samples to {end} -> {summary.output}")
     if not quiet and summary.events:
         click.echo(f"{summary.name}: events: {summary.events}")

@@ -61,6 +61,7 @@ class IntegratorSpec:
     summary: str
     reference: str
     module: str
+    adaptive: bool = False  # chooses its own steps: ``dt`` is then the output grid (see ias15)
 
     @property
     def names(self) -> tuple[str, ...]:

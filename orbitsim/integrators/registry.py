@@ -30,6 +30,7 @@ MODULE_NAMES: tuple[str, ...] = (
     "leapfrog6",
     "leapfrog8",
     "wisdom_holman",
+    "ias15",
 )
 
 

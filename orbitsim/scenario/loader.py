@@ -13,7 +13,8 @@ from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_bar
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.events import read_events
 from orbitsim.scenario.fields import Fields, describe
-from orbitsim.scenario.model import FRAMES, Scenario, resolve_steps
+from orbitsim.scenario.model import DEFAULT_SAMPLES, FRAMES, Scenario, adaptive_integrator, resolve_steps
+from orbitsim.scenario.timing import resolve_grid
 from orbitsim.scenario.yamlio import parse_yaml
 
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
@@ -163,14 +164,17 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     G = top.number("G", UNIT_SYSTEMS[units].G, positive=True)
     integrator, settings = _read_integrator(top)
     dt = top.number("dt", positive=True)
+    output = Fields(top.raw("output", {}), "output", OUTPUT_KEYS, "output section")
+    output.one_of("every", "interval", required=False)
     t_end = None
-    if top.one_of("steps", "t_end") == "steps":
+    if adaptive_integrator(integrator, settings):
+        steps = _adaptive_grid(top, output, integrator)
+        t_end = top.number("t_end", positive=True)
+    elif top.one_of("steps", "t_end") == "steps":
         steps = top.integer("steps", minimum=1, steps=True)
     else:
         t_end = top.number("t_end", positive=True)
         steps = resolve_steps(t_end, dt)[0]
-    output = Fields(top.raw("output", {}), "output", OUTPUT_KEYS, "output section")
-    output.one_of("every", "interval", required=False)
     softening = top.number("softening", 0.0, minimum=0.0)
     frame = top.string("frame", "as_given", choices=FRAMES)
     name = top.string("name", default_name)
@@ -199,6 +203,19 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                         events=events, record_elements=elements, elements_primary=primary)
     scenario.remember_origins(bodies.origins)
     return scenario
+
+
+def _adaptive_grid(top: Fields, output: Fields, integrator: str) -> int:
+    """An adaptive scheme's output intervals: it needs ``t_end``, and samples by ``output.interval``."""
+    if top.has("steps") or not top.has("t_end"):
+        raise top.error("steps" if top.has("steps") else "t_end",
+                        f"{integrator} chooses its own steps: give t_end (the end time), not steps")
+    if output.has("every"):
+        raise output.error("every", f"{integrator} chooses its own steps, so samples are taken by time: give "
+                                    "output.interval instead of output.every")
+    t_end = top.number("t_end", positive=True)
+    interval = output.number("interval", None, positive=True)
+    return resolve_grid(t_end, interval if interval is not None else t_end / DEFAULT_SAMPLES)
 
 
 def _read_checkpoint(output: Fields) -> tuple[int | None, float | None]:

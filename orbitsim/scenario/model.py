@@ -22,7 +22,7 @@ from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_count, check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
-from orbitsim.scenario.timing import MAX_STEPS, resolve_steps, steps_limit_error
+from orbitsim.scenario.timing import MAX_STEPS, resolve_grid, resolve_steps, steps_limit_error
 
 if TYPE_CHECKING:
     from orbitsim.sampling import SamplePlan
@@ -36,6 +36,18 @@ POSITIONS_MAX_N = 1000
 FRAMES = ("as_given", "barycentric")
 #: A name becomes the default output file name, so it must be a plain file name.
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+
+
+def adaptive_integrator(integrator: str, settings: Mapping[str, Any] | None) -> bool:
+    """Whether ``integrator`` with ``settings`` chooses its own steps (False for an unknown name:
+    the integrator check reports that)."""
+    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec
+
+    try:
+        spec = get_spec(integrator)
+    except UnknownIntegratorError:
+        return False
+    return bool(spec.adaptive and (settings or {}).get("adaptive", True) is not False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,6 +212,9 @@ class Scenario:
     def _validate_time(self) -> None:
         self._set("dt", check_number(self.dt, "dt", positive=True))
         self._set("steps", check_count(self.steps, "steps"))
+        if self.adaptive:
+            self._validate_adaptive_time()
+            return
         if not math.isfinite(self.steps * self.dt):
             raise ScenarioError(f"steps * dt = {self.steps} * {self.dt:g} overflows float64: use a smaller dt "
                                 "(or other units)", key="dt")
@@ -220,6 +235,24 @@ class Scenario:
                                         "output.interval", "sample more often")
         self._validate_checkpoint()
 
+    def _validate_adaptive_time(self) -> None:
+        """An adaptive scheme's run: ``t_end`` and ``output.interval`` make its grid, ``dt`` is
+        only the first trial step, and ``steps`` counts output intervals."""
+        name = self.integrator
+        if self.t_end is None:
+            raise ScenarioError(f"{name} chooses its own steps: give t_end (the end time), not steps", key="steps")
+        self._set("t_end", check_number(self.t_end, "t_end", positive=True))
+        if self.every is not None:
+            raise ScenarioError(f"{name} chooses its own steps, so samples are taken by time: give "
+                                "output.interval instead of output.every", key="output.every")
+        if self.interval is not None:
+            self._set("interval", check_number(self.interval, "output.interval", positive=True))
+        expected = resolve_grid(self.t_end, self.grid_dt)
+        if expected != self.steps:
+            raise ScenarioError(f"steps = {self.steps} disagrees with t_end = {self.t_end:g} / output.interval = "
+                                f"{self.grid_dt:g} ({expected} output intervals)", key="steps")
+        self._validate_checkpoint()
+
     def _validate_checkpoint(self) -> None:
         every, seconds = self.checkpoint_every, self.checkpoint_seconds
         if every is not None:
@@ -235,8 +268,32 @@ class Scenario:
         return int(self.masses.shape[0])
 
     @property
+    def adaptive(self) -> bool:
+        """Whether the integrator chooses its own steps (ias15 unless ``adaptive: false``)."""
+        return adaptive_integrator(self.integrator, self.integrator_settings)
+
+    @property
+    def grid_dt(self) -> float:
+        """The run loop's grid: ``dt`` for a fixed-step scheme; for an adaptive one the output
+        interval (``output.interval``, or t_end / DEFAULT_SAMPLES), on which samples land exactly."""
+        if not self.adaptive:
+            return self.dt
+        return self.interval if self.interval is not None else self.t_end / DEFAULT_SAMPLES
+
+    @property
+    def run_settings(self) -> dict[str, Any]:
+        """The integrator settings a run passes to its scheme: an adaptive one also gets its first
+        trial step (``dt``) and where its last output interval ends (``t_end``)."""
+        if not self.adaptive:
+            return dict(self.integrator_settings)
+        return {**self.integrator_settings, "first_dt": self.dt, "t_end": self.t_end}
+
+    @property
     def end_time(self) -> float:
-        """Time of the last step, ``steps * dt`` (<= ``t_end`` when that was given)."""
+        """Time of the last step, ``steps * dt`` (<= ``t_end`` when that was given); ``t_end`` for
+        an adaptive run, whose last sample lands on it exactly."""
+        if self.adaptive:
+            return float(self.t_end)
         return self.steps * self.dt
 
     @property
@@ -249,6 +306,8 @@ class Scenario:
         """The ``every`` actually used (the default when neither every nor interval was given)."""
         if self.interval is not None:
             return None
+        if self.adaptive:
+            return 1  # every output interval
         return self.every if self.every is not None else max(1, math.ceil(self.steps / DEFAULT_SAMPLES))
 
     @property
@@ -260,6 +319,8 @@ class Scenario:
         """The sampling plan: step 0 first, ``steps`` last, produced block by block."""
         from orbitsim.sampling import EveryPlan, IntervalPlan
 
+        if self.adaptive:
+            return EveryPlan(self.steps, 1)  # the grid is the output grid
         if self.interval is not None:
             return IntervalPlan(self.steps, self.dt, self.interval)
         return EveryPlan(self.steps, int(self.sample_every))
@@ -272,6 +333,8 @@ class Scenario:
     def notes(self) -> list[str]:
         """Things a user should know before running, one line each (may be empty)."""
         notes = []
+        if self.adaptive:
+            return notes  # t_end is reached exactly, and every output interval is sampled
         if not self.t_end_is_whole:
             notes.append(f"t_end = {self.t_end:.10g} is not a whole number of steps of dt = {self.dt:g}: the run "
                          f"takes {self.steps} whole steps and ends at t = {self.end_time:.10g} "

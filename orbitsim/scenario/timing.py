@@ -14,7 +14,7 @@ import math
 
 from orbitsim.scenario.errors import ScenarioError
 
-__all__ = ["MAX_STEPS", "resolve_steps", "steps_limit_error"]
+__all__ = ["MAX_STEPS", "resolve_grid", "resolve_steps", "steps_limit_error"]
 
 #: The most steps a scenario may count: 2**53. A sample's time is ``step * dt`` in float64, which
 #: holds every whole number exactly only up to 2**53; beyond it two steps can share one time (and
@@ -42,6 +42,24 @@ def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
     if steps > MAX_STEPS:
         raise steps_limit_error(f"t_end / dt = {ratio:.3g} steps", "t_end")
     return steps, whole
+
+
+def resolve_grid(t_end: float, interval: float) -> int:
+    """Output intervals of an adaptive run up to ``t_end``: the last one ends at ``t_end`` itself,
+    shorter than ``interval`` when ``interval`` does not divide ``t_end``.
+
+    Raises
+    ------
+    ScenarioError
+        When more than :data:`MAX_STEPS` samples would be taken.
+    """
+    ratio = t_end / interval
+    if not ratio <= MAX_STEPS:
+        raise steps_limit_error(f"t_end / output.interval = {ratio:.3g} samples", "output.interval")
+    nearest = round(ratio)
+    if nearest >= 1 and abs(ratio - nearest) <= _WHOLE_STEPS_RTOL * ratio:
+        return int(nearest)
+    return max(1, math.ceil(ratio))
 
 
 def _whole_steps(t_end: float, dt: float, ratio: float) -> tuple[int, bool]:
