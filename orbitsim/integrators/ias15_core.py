@@ -158,26 +158,37 @@ def _g_from_b(b, g):
 
 @jit
 def _predict_positions(pos, x0, v0, a0, b, csx, dt, hn):
-    """Positions at the node h_n of the step from the current b's (REBOUND's Horner form)."""
-    for k in range(pos.shape[0]):
-        xk = -csx[k] + ((((((((b[6, k] * 7.0 * hn / 9.0 + b[5, k]) * 3.0 * hn / 4.0 + b[4, k])
-                               * 5.0 * hn / 7.0 + b[3, k]) * 2.0 * hn / 3.0 + b[2, k]) * 3.0 * hn / 5.0
-                             + b[1, k]) * hn / 2.0 + b[0, k]) * hn / 3.0 + a0[k]) * dt * hn / 2.0
-                          + v0[k]) * dt * hn
+    """Positions at the node h_n of the step from the current b's (REBOUND's Horner form).
+
+    The Horner chain is cut into three passes over k, the partial sums held in ``pos`` (stored as
+    doubles, so no bit changes): one pass over the whole chain is bound by the latency of its five
+    divisions per component, while each shorter pass keeps the divider busy with independent k."""
+    n3 = pos.shape[0]
+    for k in range(n3):
+        pos[k] = (((b[6, k] * 7.0 * hn / 9.0 + b[5, k]) * 3.0 * hn / 4.0 + b[4, k])
+                  * 5.0 * hn / 7.0 + b[3, k])
+    for k in range(n3):
+        pos[k] = (pos[k] * 2.0 * hn / 3.0 + b[2, k]) * 3.0 * hn / 5.0 + b[1, k]
+    for k in range(n3):
+        xk = -csx[k] + ((((pos[k] * hn / 2.0 + b[0, k]) * hn / 3.0 + a0[k]) * dt * hn / 2.0
+                         + v0[k]) * dt * hn)
         pos[k] = xk + x0[k]
 
 
 @jit
-def _correct(n, at, a0, g, b, csb):
+def _correct(n, at, a0, g, b, csb, w):
     """Update g_(n-1) from the accelerations ``at`` at node n and carry its change into the b's.
+
+    ``w`` (3N) is scratch. Each stage of the divided difference runs as its own pass over k, so the
+    n dependent divisions of one component overlap with those of the others instead of forming one
+    long chain per component; every value is rounded exactly as in the one-pass form.
 
     Returns (max |change of b_6|, max |a|) over the normal components when n = 7, else zeros."""
     j = n - 1
     r0 = j * (j + 1) // 2
     c0 = j * (j - 1) // 2
-    max_b6 = 0.0
-    max_a = 0.0
-    for k in range(at.shape[0]):
+    n3 = at.shape[0]
+    for k in range(n3):
         # (a_n - a_0) with REBOUND's two compensated additions (the second adds a zero
         # compensation of the start-of-step force, which still folds in the first's error).
         gk = at[k]
@@ -190,20 +201,29 @@ def _correct(n, at, a0, g, b, csb):
         t = gk + y
         cs = (t - gk) - y
         gk = t
-        old = g[j, k]
-        val = gk / RR[r0]
-        for q in range(j):
-            val = (val - g[q, k]) / RR[r0 + 1 + q]
+        w[k] = gk / RR[r0]
+    for q in range(j):
+        rq = RR[r0 + 1 + q]
+        for k in range(n3):
+            w[k] = (w[k] - g[q, k]) / rq
+    for k in range(n3):
+        val = w[k]
+        w[k] = val - g[j, k]  # from here on w holds the change of g_j
         g[j, k] = val
-        change = val - old
-        for q in range(j):
-            add_cs7(b, csb, q, k, change * C[c0 + q])
-        add_cs7(b, csb, j, k, change)
-        if n == 7:
+    for q in range(j):
+        cq = C[c0 + q]
+        for k in range(n3):
+            add_cs7(b, csb, q, k, w[k] * cq)
+    for k in range(n3):
+        add_cs7(b, csb, j, k, w[k])
+    max_b6 = 0.0
+    max_a = 0.0
+    if n == 7:
+        for k in range(n3):
             ak = abs(at[k])
             if is_normal(ak) and ak > max_a:
                 max_a = ak
-            b6k = abs(change)
+            b6k = abs(w[k])
             if is_normal(b6k) and b6k > max_b6:
                 max_b6 = b6k
     return max_b6, max_a
@@ -364,7 +384,9 @@ def step_try(pos, vel, acc, m, force, work):
                 all_pairs_accelerations(pos, m, G, eps2, at)
             else:
                 accelerations(pos, m, G, eps2, at, slabs, bounds)
-            max_b6, max_a = _correct(n, atf, a0, g, b, csb)
+            # pf is the corrector's scratch: nothing reads the node's positions after the force
+            # evaluation, and every path out of the step rewrites them from x0.
+            max_b6, max_a = _correct(n, atf, a0, g, b, csb, pf)
             if n == 7:
                 error = max_b6 / max_a
         counts[COUNT_FORCE_EVALS] += 7
