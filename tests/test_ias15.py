@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import rebound
 
-from orbitsim.integrators import ias15_core
+from orbitsim.integrators import ias15_tables
 from orbitsim.integrators.ias15 import counters
 from orbitsim.integrators.registry import get_spec
 from orbitsim.runner import run_scenario
@@ -187,17 +187,17 @@ def test_coefficient_tables_match_the_gauss_radau_nodes() -> None:
         return p1, dp
 
     nodes = []
-    for h in ias15_core.H[1:]:
+    for h in ias15_tables.H[1:]:
         x = Decimal(2 * float(h) - 1)
         for _ in range(60):
             p7, d7 = legendre(7, x)
             p8, d8 = legendre(8, x)
             x -= (p7 + p8) / (d7 + d8)
         nodes.append((x + 1) / 2)
-    assert np.allclose(ias15_core.H[1:], [float(h) for h in nodes], rtol=4e-16, atol=0)
+    assert np.allclose(ias15_tables.H[1:], [float(h) for h in nodes], rtol=4e-16, atol=0)
     h = [Fraction(0)] + [Fraction(str(n)) for n in nodes]
     rr = [h[n] - h[j] for n in range(1, 8) for j in range(n)]
-    assert np.allclose(ias15_core.RR, [float(r) for r in rr], rtol=4e-16, atol=0)
+    assert np.allclose(ias15_tables.RR, [float(r) for r in rr], rtol=4e-16, atol=0)
     # c: coefficients of the basis polynomials t (t - h_1) ... (t - h_j) in powers of t.
     c = []
     for j in range(1, 7):
@@ -205,13 +205,13 @@ def test_coefficient_tables_match_the_gauss_radau_nodes() -> None:
         for q in range(1, j + 1):
             poly = [(poly[k - 1] if k else 0) - h[q] * (poly[k] if k < len(poly) else 0) for k in range(len(poly) + 1)]
         c.extend(poly[:-1])
-    assert np.allclose(ias15_core.C, [float(x) for x in c], rtol=1e-15, atol=1e-25)
+    assert np.allclose(ias15_tables.C, [float(x) for x in c], rtol=1e-15, atol=1e-25)
     # d inverts c: b = C g and g = D b as lower-triangular matrices with unit diagonal.
     cm, dm = np.eye(7), np.eye(7)
     k = 0
     for row in range(1, 7):
         for col in range(row):
-            cm[col, row] = ias15_core.C[k]
-            dm[col, row] = ias15_core.D[k]
+            cm[col, row] = ias15_tables.C[k]
+            dm[col, row] = ias15_tables.D[k]
             k += 1
     assert np.allclose(cm @ dm, np.eye(7), atol=1e-14)

@@ -13,8 +13,8 @@ from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_bar
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.events import read_events
 from orbitsim.scenario.fields import Fields, describe
-from orbitsim.scenario.model import DEFAULT_SAMPLES, FRAMES, Scenario, adaptive_integrator, resolve_steps
-from orbitsim.scenario.timing import resolve_grid
+from orbitsim.scenario.model import DEFAULT_SAMPLES, FRAMES, Scenario, resolve_steps
+from orbitsim.scenario.timing import adaptive_integrator, resolve_grid
 from orbitsim.scenario.yamlio import parse_yaml
 
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
@@ -168,8 +168,7 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     output.one_of("every", "interval", required=False)
     t_end = None
     if adaptive_integrator(integrator, settings):
-        steps = _adaptive_grid(top, output, integrator)
-        t_end = top.number("t_end", positive=True)
+        steps, t_end = _adaptive_grid(top, output, integrator)
     elif top.one_of("steps", "t_end") == "steps":
         steps = top.integer("steps", minimum=1, steps=True)
     else:
@@ -205,8 +204,9 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     return scenario
 
 
-def _adaptive_grid(top: Fields, output: Fields, integrator: str) -> int:
-    """An adaptive scheme's output intervals: it needs ``t_end``, and samples by ``output.interval``."""
+def _adaptive_grid(top: Fields, output: Fields, integrator: str) -> tuple[int, float]:
+    """An adaptive scheme's output intervals and ``t_end``: it needs ``t_end``, and samples by
+    ``output.interval``."""
     if top.has("steps") or not top.has("t_end"):
         raise top.error("steps" if top.has("steps") else "t_end",
                         f"{integrator} chooses its own steps: give t_end (the end time), not steps")
@@ -215,7 +215,7 @@ def _adaptive_grid(top: Fields, output: Fields, integrator: str) -> int:
                                     "output.interval instead of output.every")
     t_end = top.number("t_end", positive=True)
     interval = output.number("interval", None, positive=True)
-    return resolve_grid(t_end, interval if interval is not None else t_end / DEFAULT_SAMPLES)
+    return resolve_grid(t_end, interval if interval is not None else t_end / DEFAULT_SAMPLES), t_end
 
 
 def _read_checkpoint(output: Fields) -> tuple[int | None, float | None]:

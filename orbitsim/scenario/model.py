@@ -22,7 +22,7 @@ from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_count, check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
-from orbitsim.scenario.timing import MAX_STEPS, resolve_grid, resolve_steps, steps_limit_error
+from orbitsim.scenario.timing import MAX_STEPS, adaptive_integrator, resolve_grid, resolve_steps, steps_limit_error
 
 if TYPE_CHECKING:
     from orbitsim.sampling import SamplePlan
@@ -36,18 +36,6 @@ POSITIONS_MAX_N = 1000
 FRAMES = ("as_given", "barycentric")
 #: A name becomes the default output file name, so it must be a plain file name.
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
-
-
-def adaptive_integrator(integrator: str, settings: Mapping[str, Any] | None) -> bool:
-    """Whether ``integrator`` with ``settings`` chooses its own steps (False for an unknown name:
-    the integrator check reports that)."""
-    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec
-
-    try:
-        spec = get_spec(integrator)
-    except UnknownIntegratorError:
-        return False
-    return bool(spec.adaptive and (settings or {}).get("adaptive", True) is not False)
 
 
 @dataclass(frozen=True, eq=False)

@@ -6,15 +6,20 @@ means exactly that many steps.
 
 Every step count of a scenario (``steps``, ``t_end / dt``, ``output.every``,
 ``output.interval / dt``, ``output.checkpoint.every``) is at most :data:`MAX_STEPS`.
+
+An adaptive integrator (:func:`adaptive_integrator`) takes no fixed steps: its run is counted in
+output intervals instead (:func:`resolve_grid`), the last one ending on ``t_end`` exactly.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from orbitsim.scenario.errors import ScenarioError
 
-__all__ = ["MAX_STEPS", "resolve_grid", "resolve_steps", "steps_limit_error"]
+__all__ = ["MAX_STEPS", "adaptive_integrator", "resolve_grid", "resolve_steps", "steps_limit_error"]
 
 #: The most steps a scenario may count: 2**53. A sample's time is ``step * dt`` in float64, which
 #: holds every whole number exactly only up to 2**53; beyond it two steps can share one time (and
@@ -42,6 +47,18 @@ def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
     if steps > MAX_STEPS:
         raise steps_limit_error(f"t_end / dt = {ratio:.3g} steps", "t_end")
     return steps, whole
+
+
+def adaptive_integrator(integrator: str, settings: Mapping[str, Any] | None) -> bool:
+    """Whether ``integrator`` with ``settings`` chooses its own steps (False for an unknown name:
+    the integrator check reports that)."""
+    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec
+
+    try:
+        spec = get_spec(integrator)
+    except UnknownIntegratorError:
+        return False
+    return bool(spec.adaptive and (settings or {}).get("adaptive", True) is not False)
 
 
 def resolve_grid(t_end: float, interval: float) -> int:
