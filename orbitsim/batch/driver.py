@@ -23,6 +23,7 @@ import contextlib
 import csv
 import signal
 import threading
+import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -40,6 +41,11 @@ __all__ = ["TASK_RETRIES", "SweepInterrupted", "SweepOutcome", "completed_result
 #: import orbitsim). Run failures never raise (they are returned as rows), and a *killed* worker's
 #: tasks are rescheduled by the scheduler independently of this number.
 TASK_RETRIES = 1
+
+#: How often the driver looks for finished runs (a run takes seconds to hours), and how long one
+#: result fetch may take before the run is treated as still pending (its holder died mid-fetch).
+POLL_S = 0.1
+RESULT_WAIT_S = 60.0
 
 #: Called after each finished run with (runs finished so far, runs submitted, the new row).
 Progress = Callable[[int, int, dict[str, Any]], None]
@@ -293,8 +299,6 @@ def _collect(
     label: str,
 ) -> None:
     """Submit ``pending`` in case order and file each result under its case as it arrives."""
-    from distributed import as_completed
-
     _check_workers(client)
     (outdir / "runs").mkdir(parents=True, exist_ok=True)
     if on_start is not None:
@@ -308,12 +312,8 @@ def _collect(
         futures[future] = case
     finished = 0
     try:
-        for future in as_completed(futures):
+        for future, result in _results(futures):
             case = futures[future]
-            try:
-                result = future.result()
-            except Exception as err:  # e.g. KilledWorker after too many worker deaths: a failed row
-                result = failed_result(err)
             rows[case.index] = _row(case, outdir, result, False)
             finished += 1
             if progress is not None:
@@ -321,6 +321,34 @@ def _collect(
     finally:
         if finished < len(futures):  # Ctrl-C or an error in here: stop what is still queued
             client.cancel(list(futures))
+
+
+def _results(futures: dict[Any, Case]) -> Iterator[tuple[Any, dict[str, Any]]]:
+    """Each future with its result (or its failure as a row), in the order they finish.
+
+    Polls ``Future.done()`` rather than using ``distributed.as_completed``: when a worker dies
+    holding a result that was already computed, the scheduler recomputes it elsewhere, but
+    ``as_completed`` (distributed 2026.8) keeps waiting on the lost attempt and never yields it,
+    so a sweep hung forever after a worker was killed (reproduced under load). A fetch that
+    finds the result gone again within ``RESULT_WAIT_S`` goes back to the pending set.
+    """
+    from distributed import TimeoutError as DaskTimeout
+
+    pending = dict.fromkeys(futures)
+    while pending:
+        done = [future for future in pending if future.done()]
+        if not done:
+            time.sleep(POLL_S)
+            continue
+        for future in done:
+            try:
+                result = future.result(timeout=RESULT_WAIT_S)
+            except (DaskTimeout, TimeoutError):
+                continue  # lost again while fetching: wait for the recomputation
+            except Exception as err:  # e.g. KilledWorker after too many worker deaths: a failed row
+                result = failed_result(err)
+            del pending[future]
+            yield future, result
 
 
 def _check_workers(client: Any) -> None:
