@@ -8,9 +8,10 @@ step, plus a random delay of up to 50 ms, so kills land while it integrates, app
 publishes a checkpoint or rebuilds nothing yet, never while it loads Numba's cache. Drawing the
 moments as steps rather than seconds keeps the run going until the tenth kill on a machine of
 any speed (a process makes at least one jitted call of progress, ~0.2 s); the last resume
-finishes it. Two schemes: ``verlet`` (symplectic; its accelerations
-are state carried from step to step) and ``wisdom_holman`` (it keeps Jacobi mapping coordinates
-and a phase between steps, in ``work``).
+finishes it. Three schemes: ``verlet`` (symplectic; its accelerations
+are state carried from step to step), ``wisdom_holman`` (it keeps Jacobi mapping coordinates
+and a phase between steps, in ``work``) and ``ias15`` (adaptive: its predictor polynomial,
+compensation terms, trial step and clock are the state; its "steps" are output intervals).
 """
 
 from __future__ import annotations
@@ -66,9 +67,7 @@ def ias15_yaml() -> str:
     return text.replace("  interval: 10\n", "  interval: 100\n  checkpoint: {every: 40}\n")
 
 
-# ias15_yaml() is not in CASES yet: its killed-and-resumed run exited 2 in this test and the cause
-# is not found (see the closing note of the IAS15 issue); the kernel's checkpoint state is complete.
-CASES = {"verlet": VERLET, "wisdom_holman": wisdom_holman_yaml()}
+CASES = {"verlet": VERLET, "wisdom_holman": wisdom_holman_yaml(), "ias15": ias15_yaml()}
 
 
 def orbitsim(*args: str) -> list[str]:

@@ -174,6 +174,38 @@ def test_output_grid_ends_exactly_at_t_end() -> None:
     assert np.array_equal(times, [0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 10.5])
 
 
+def test_stored_scenario_reloads_with_the_same_hash() -> None:
+    """Traces and checkpoints store the resolved scenario; an adaptive one keeps t_end (its grid
+    ends there exactly) rather than steps, which the loader refuses for ias15."""
+    from orbitsim.scenario.yamlio import parse_yaml
+
+    sc = scenario_from_dict({**GIANT, "t_end": 10.5, "output": {"interval": 2.0}})
+    again = scenario_from_dict(parse_yaml(sc.to_yaml(), "stored")[0])
+    assert again.sha256 == sc.sha256 and again.steps == 6 and again.end_time == 10.5
+
+
+def test_run_from_continues_a_finished_run_bit_for_bit(tmp_path: Path) -> None:
+    """``run --from`` restores the checkpoint of a run that ended at t = 40 and goes on to 80: the
+    same datasets as one run to 80 (the clock, predictor and last full step carry over)."""
+    import h5py
+    from click.testing import CliRunner
+
+    from orbitsim.cli.main import cli
+
+    def run(*args: str) -> None:
+        result = CliRunner().invoke(cli, ["run", *args, "-q"], catch_exceptions=False)
+        assert result.exit_code == 0, result.output
+
+    first, extended, direct = tmp_path / "first.h5", tmp_path / "extended.h5", tmp_path / "direct.h5"
+    run("giants", "--t-end", "40", "--interval", "10", "-o", str(first))
+    run("--from", str(first), "--t-end", "80", "-o", str(extended))
+    run("giants", "--t-end", "80", "--interval", "10", "-o", str(direct))
+    with h5py.File(extended, "r") as a, h5py.File(direct, "r") as b:
+        assert a["time"][-1] == 80.0
+        for name in ("time", "positions", "velocities", "energy"):
+            assert a[name][()].tobytes() == b[name][()].tobytes(), name
+
+
 def test_coefficient_tables_match_the_gauss_radau_nodes() -> None:
     """h: the roots of P_7(x) + P_6(x)... on [0, 1] recomputed by Newton in 40-digit decimals;
     rr, c, d from them in exact rational arithmetic. Each table entry is within a few ulps."""

@@ -54,8 +54,10 @@ def restore_state(sim: Simulation, state: SimState) -> None:
         if have.shape != saved.shape:
             raise CheckpointError(f"checkpoint {name} has shape {saved.shape}, the run needs {have.shape}")
     arrays = iter(state.work)
+    # Constants the run itself sets (ias15's t_end, which `run --from` moves): the new run's value stays.
+    run_constants = getattr(sim._module, "RUN_CONSTANTS", ())
     try:
-        _restore(sim.work, json.loads(state.work_layout), arrays)
+        _restore(sim.work, json.loads(state.work_layout), arrays, run_constants)
     except StopIteration:
         raise CheckpointError("checkpoint holds fewer work arrays than the integrator keeps") from None
     if next(arrays, None) is not None:
@@ -70,7 +72,9 @@ def restore_state(sim: Simulation, state: SimState) -> None:
         sim.watcher.restore(state.events)
 
 
-def _restore(obj: Any, layout: Any, arrays: Any) -> None:
+def _restore(obj: Any, layout: Any, arrays: Any, run_constants: tuple[int, ...] = ()) -> None:
+    """Write ``arrays`` back into ``obj`` following ``layout``; top-level items whose index is in
+    ``run_constants`` are constants of the run, not of the checkpoint, and are not compared."""
     if layout == "a":
         saved = next(arrays)
         if not isinstance(obj, np.ndarray) or obj.shape != saved.shape or obj.dtype != saved.dtype:
@@ -80,7 +84,10 @@ def _restore(obj: Any, layout: Any, arrays: Any) -> None:
         if not np.array_equal(np.asarray(obj), next(arrays)):
             raise CheckpointError("checkpoint was written with other integrator settings (a constant differs)")
     elif isinstance(layout, list) and isinstance(obj, tuple | list) and len(obj) == len(layout):
-        for item, sub in zip(obj, layout, strict=True):
-            _restore(item, sub, arrays)
+        for index, (item, sub) in enumerate(zip(obj, layout, strict=True)):
+            if index in run_constants and sub == "s":
+                next(arrays)
+            else:
+                _restore(item, sub, arrays)
     else:
         raise CheckpointError("checkpoint work layout does not fit this integrator")

@@ -73,6 +73,9 @@ SPEC = IntegratorSpec(
 SETTINGS: dict[str, Any] = {"epsilon": 1e-9, "min_dt": 0.0, "adaptive": True}
 #: Settings the run loop passes beside them (from the scenario's ``dt`` and ``t_end``).
 RUN_SETTINGS = ("first_dt", "t_end")
+#: Work entries a restored checkpoint does not override: the end of the run (``run --from``
+#: continues a finished run to a later t_end from its checkpoint).
+RUN_CONSTANTS = (W_T_END,)
 
 
 def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -1,10 +1,11 @@
 """The resolved scenario as plain Python and as YAML text: what a trace stores and hashes.
 
 Bodies are explicit and Cartesian, the frame is ``as_given`` (any shift is already applied),
-``steps`` replaces ``t_end`` and the sampling is explicit, so loading the text reproduces the same
-bits. Keys a scenario does not use (radii, ``events``, ``output.elements``, ``output.checkpoint``)
-are left out rather than written as defaults, so the text and SHA-256 of every scenario written
-before they existed stay the same.
+``steps`` replaces ``t_end`` (except for an adaptive integrator, whose grid ends on ``t_end``
+exactly) and the sampling is explicit, so loading the text reproduces the same bits. Keys a
+scenario does not use (radii, ``events``, ``output.elements``, ``output.checkpoint``) are left
+out rather than written as defaults, so the text and SHA-256 of every scenario written before
+they existed stay the same.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         bodies.append(body)
     doc = {"name": s.name, "description": s.description, "units": s.units, "G": s.G, "integrator": integrator,
            "dt": s.dt, "steps": s.steps, "output": output, "softening": s.softening, "frame": "as_given"}
+    if s.adaptive:  # its grid is the output intervals up to t_end exactly, and `steps` is refused
+        doc = {("t_end" if k == "steps" else k): (s.t_end if k == "steps" else v) for k, v in doc.items()}
     if s.events is not None:
         doc["events"] = s.events.to_dict()
     doc["bodies"] = bodies
