@@ -2,12 +2,15 @@
 
 Every run starts from the scenario's initial state with its G, softening and dt, and is sampled at
 the scenario's sample steps (``Scenario.sample_steps()``). orbitsim runs record positions at every
-sample; REBOUND's fixed-step runs are stepped whole steps to the same indices; the IAS15 reference
-lands exactly on the same times. See ``docs/compare.md`` for the metrics and tolerances.
+sample; REBOUND's fixed-step runs are stepped whole steps to the same indices; the two IAS15s
+(orbitsim's and REBOUND's, :mod:`orbitsim.analysis.compare_ias15`) land exactly on the same times,
+and the one chosen with ``reference`` is the reference. For an adaptive scenario (``integrator:
+ias15``) the samples are its output grid and fixed-dt schemes step by its ``dt`` to the step on
+each output time. See ``docs/compare.md`` for the metrics and tolerances.
 
 The scenario is used through these attributes only: ``name``, ``G``, ``softening``, ``dt``,
-``integrator``, ``integrator_settings``, ``masses``, ``positions``, ``velocities``, ``names`` and
-``sample_steps()``.
+``integrator``, ``integrator_settings``, ``masses``, ``positions``, ``velocities``, ``names``,
+``sample_steps()`` and, for an adaptive one, ``adaptive``, ``grid_dt`` and ``t_end``.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from orbitsim.analysis.metrics import (
 from orbitsim.analysis.record import RunRecord, record_from_result
 from orbitsim.reference.bridge import ReboundScheme, parse_rebound_scheme
 from orbitsim.reference.pairs import (
+    IAS15_PAIR,
     TWIN_PERTURBATION,
     MatchedPair,
     available_pairs,
@@ -66,19 +70,23 @@ def _registered(name: str) -> bool:
 
 def default_integrators(scenario: Any) -> list[str]:
     """The scenario's integrator, :data:`DEFAULT_MATCHED`, and ``wisdom_holman`` (if registered)
-    when body 0 dominates the mass."""
+    when body 0 dominates the mass; for an adaptive scenario only its own integrator (its ``dt`` is
+    a first trial step, not a step a fixed-dt scheme was chosen for)."""
     from orbitsim.integrators.registry import canonical_name
 
+    if getattr(scenario, "adaptive", False):
+        return [canonical_name(scenario.integrator)]
     names = [canonical_name(scenario.integrator), *DEFAULT_MATCHED]
     if has_dominant_central_mass(scenario.masses) and _registered("wisdom_holman"):
         names.append("wisdom_holman")
     return list(dict.fromkeys(names))
 
 
-def default_rebound(integrators: Sequence[str], masses: np.ndarray) -> list[ReboundScheme]:
-    """The REBOUND partners of ``integrators``, plus WHFast when body 0 dominates the mass."""
+def default_rebound(integrators: Sequence[str], masses: np.ndarray, *, whfast: bool = True) -> list[ReboundScheme]:
+    """The REBOUND partners of ``integrators``, plus WHFast (unless ``whfast`` is false, as for an
+    adaptive scenario) when body 0 dominates the mass."""
     schemes = [s for s in (partner_of(name) for name in integrators) if s is not None]
-    if has_dominant_central_mass(masses):
+    if whfast and has_dominant_central_mass(masses):
         schemes.append(ReboundScheme("whfast"))
     return list(dict.fromkeys(schemes))
 
@@ -96,6 +104,10 @@ class CompareResult:
     notes: list[str] = field(default_factory=list)
     #: Why the IAS15 reference cannot be trusted (see ``metrics.reference_problem``), or "".
     reference_problem: str = ""
+    #: Both IAS15s, ``{"rebound": ..., "orbitsim": ...}``; ``reference`` is one of them.
+    references: dict[str, RunRecord] = field(default_factory=dict)
+    #: Which of them is the reference (``--reference``).
+    reference_choice: str = "rebound"
 
     @property
     def passed(self) -> bool:
@@ -128,7 +140,7 @@ class CompareResult:
 
     def record(self, label: str) -> RunRecord:
         """The run with ``label`` (``engine/key``)."""
-        for rec in [*self.runs, self.reference]:
+        for rec in [*self.runs, self.reference, *self.references.values()]:
             if rec.label == label:
                 return rec
         raise KeyError(label)
@@ -173,15 +185,15 @@ def _pairs_for(integrators: Sequence[str], schemes: Sequence[ReboundScheme],
 
 def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[ReboundScheme | str],
                 extra_pairs: Sequence[MatchedPair] = (), threads: int | None = None,
-                progress: Progress | None = None) -> CompareResult:
-    """Run ``scenario`` under each integrator of both codes and the IAS15 reference.
+                progress: Progress | None = None, reference: str = "rebound") -> CompareResult:
+    """Run ``scenario`` under each integrator of both codes and both IAS15s.
 
     Parameters
     ----------
     scenario : Scenario
         A loaded scenario (dt, steps and sampling already final).
     integrators : sequence of str
-        orbitsim integrator names or aliases.
+        orbitsim integrator names or aliases; ``ias15`` adds the pair of the two IAS15s.
     rebound : sequence of ReboundScheme or str
         REBOUND schemes (``ias15`` is always the reference and is not run twice).
     extra_pairs : sequence of MatchedPair
@@ -190,37 +202,62 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
         Numba threads for orbitsim.
     progress : callable, optional
         Receives one line per finished run.
+    reference : str
+        ``"rebound"`` or ``"orbitsim"``: whose IAS15 every run is measured against.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``reference``, or fixed-dt schemes whose steps miss an adaptive
+        scenario's output times.
 
     Returns
     -------
     CompareResult
     """
+    from orbitsim.analysis.compare_ias15 import (
+        REFERENCE_CHOICES,
+        fixed_step_plan,
+        output_grid,
+        rebound_ias15_twin,
+        run_ias15_references,
+    )
     from orbitsim.integrators.registry import canonical_name
-    from orbitsim.reference.sampling import run_reference
 
+    if reference not in REFERENCE_CHOICES:
+        raise ValueError(f"reference must be one of {', '.join(REFERENCE_CHOICES)}, got {reference!r}")
     say = progress or (lambda _msg: None)
-    plan = np.asarray(scenario.sample_steps(), dtype=np.int64)
+    _, _, _, plan, times = output_grid(scenario)
     names = list(dict.fromkeys([canonical_name(n) for n in integrators] + [p.orbitsim for p in extra_pairs]))
+    with_ias15 = "ias15" in names
+    names = [n for n in names if n != "ias15"]  # the two IAS15s always run, as the references
     schemes = [parse_rebound_scheme(s) if isinstance(s, str) else s for s in rebound]
     schemes = list(dict.fromkeys([s for s in schemes if s.fixed_step] + [p.rebound for p in extra_pairs]))
+    adaptive = bool(getattr(scenario, "adaptive", False))
+    fixed = fixed_step_plan(scenario, times) if adaptive and (names or schemes) else plan
     pairs = _pairs_for(names, schemes, extra_pairs)
-    runs = [_announce(run_orbitsim(scenario, name, plan, threads=threads), say) for name in names]
-    runs += [_announce(_run_rebound(scenario, s, plan, names), say) for s in schemes]
-    reference = _announce(_reference(scenario, plan, run_reference), say)
-    ref_problem = reference_problem(reference)
-    twins = {s.key: _run_rebound(scenario, s, plan, names, twin=True)
+    runs = [_announce(run_orbitsim(scenario, name, fixed, threads=threads), say) for name in names]
+    runs += [_announce(_run_rebound(scenario, s, fixed, names), say) for s in schemes]
+    references = {k: _announce(r, say) for k, r in run_ias15_references(scenario, threads).items()}
+    chosen = references[reference]
+    ref_problem = reference_problem(chosen)
+    twins = {s.key: _run_rebound(scenario, s, fixed, names, twin=True)
              for s in dict.fromkeys(p.rebound for p in pairs)}
     by_label = {r.label: r for r in runs}
     verdicts = [pair_verdict(p, by_label[f"orbitsim/{p.orbitsim}"], by_label[f"rebound/{p.rebound.key}"],
                              twins.get(p.rebound.key), ref_problem=ref_problem) for p in pairs]
-    metrics = {r.label: run_metrics(r, reference) for r in [*runs, reference]}
-    return CompareResult(scenario, runs, reference, twins, metrics, verdicts, _skipped_notes(names, schemes),
-                         ref_problem)
-
-
-def _reference(scenario: Any, plan: np.ndarray, run_reference: Callable[..., RunRecord]) -> RunRecord:
-    return run_reference(scenario.masses, scenario.positions, scenario.velocities, G=scenario.G,
-                         softening=scenario.softening, dt=scenario.dt, sample_steps=plan)
+    if with_ias15:
+        twins[IAS15_PAIR.rebound.key] = rebound_ias15_twin(scenario, TWIN_PERTURBATION)
+        verdicts.insert(0, pair_verdict(IAS15_PAIR, references["orbitsim"], references["rebound"],
+                                        twins[IAS15_PAIR.rebound.key], ref_problem=ref_problem))
+    records = [*runs, *references.values()]
+    metrics = {r.label: run_metrics(r, chosen) for r in records}
+    notes = _skipped_notes(names, schemes)
+    if adaptive and (names or schemes):
+        notes.append(f"fixed-dt integrators step by the scenario's dt = {float(scenario.dt):g} (ias15's first trial "
+                     f"step): {int(fixed[-1])} steps, sampled at the step on each output time "
+                     f"(every {float(scenario.grid_dt):g}, and t_end)")
+    return CompareResult(scenario, runs, chosen, twins, metrics, verdicts, notes, ref_problem, references, reference)
 
 
 def _run_rebound(scenario: Any, scheme: ReboundScheme, plan: np.ndarray, integrators: Sequence[str],

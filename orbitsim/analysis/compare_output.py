@@ -1,12 +1,18 @@
 """The files ``orbitsim compare`` writes: compare.h5, summary.json, report.md/.html and figures.
 
-``summary.json`` (format ``orbitsim.compare.summary``, version 2) holds, besides provenance:
+``summary.json`` (format ``orbitsim.compare.summary``, version 3) holds, besides provenance:
 
-* ``scenario``: name, source, sha256, bodies, G, softening, dt, steps, t_end, samples;
+* ``scenario``: name, source, sha256, bodies, G, softening, dt, steps, t_end, samples, adaptive
+  (for an adaptive scenario ``dt`` is ias15's first trial step, ``steps`` its output intervals
+  and ``output_interval`` their length);
 * ``runs``: one entry per run (label, engine, integrator, display, order, options, dt, steps,
   samples, status, message, max_abs_energy_error, energy_drift_slope, final_position_error,
   wall_time_s, steps_per_second), the reference last;
-* ``reference``: label, max_abs_energy_error, energy_limit, reliable, problem;
+* ``reference``: label, choice (``rebound`` or ``orbitsim``), max_abs_energy_error, energy_limit,
+  reliable, problem;
+* ``references``: both IAS15s side by side, one entry each (choice, label, display, chosen,
+  epsilon, first_dt, status, max_abs_energy_error, steps, wall_time_s,
+  max_relative_position_difference to the other and its time_of_max, final_state);
 * ``pairs``: one per matched pair (name, orbitsim, rebound, reason, builtin,
   max_relative_position_difference, time_of_max, tolerance, allowed_at_max, tolerance_source,
   max_allowed, testable_limit, untestable_from, nominal_tolerance, twin_max, worst_ratio,
@@ -14,6 +20,8 @@
 * ``verdict`` (``pass``, ``fail`` or ``not_testable``), ``passed``, ``failed_pairs`` and
   ``untestable_pairs``: the verdict behind the exit code (0, 1 and 5).
 
+Version 3 added ``references``, ``reference.choice`` and the scenario's ``adaptive`` and
+``output_interval``; the reference's run in ``runs`` is the chosen one.
 Version 2 added ``reference``, ``verdict``, ``untestable_pairs`` and the per-pair verdict fields,
 and made ``agree`` and ``passed`` false for a comparison that agrees only within a tolerance too
 loose to test anything (version 1 called that a pass).
@@ -28,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from orbitsim.analysis.compare import CompareResult
+from orbitsim.analysis.compare_references import reference_rows, references_table
 from orbitsim.analysis.figures import compare_figures
 from orbitsim.analysis.metrics import REFERENCE_ENERGY_LIMIT, TESTABLE_LIMIT
 from orbitsim.analysis.report import (
@@ -45,7 +54,7 @@ from orbitsim.io.h5safe import in_memory, new_file
 from orbitsim.provenance import provenance
 
 SUMMARY_FORMAT = "orbitsim.compare.summary"
-SUMMARY_VERSION = 2
+SUMMARY_VERSION = 3
 
 _FIGURE_CAPTIONS = {
     "energy": "Relative energy error |dE/E| against time (log axes): orbitsim left, REBOUND right, "
@@ -60,6 +69,12 @@ _FIGURE_CAPTIONS = {
 
 def _steps(result: CompareResult) -> int:
     return int(result.reference.step[-1]) if result.reference.n_samples else 0
+
+
+def _end_time(result: CompareResult) -> float:
+    """The comparison's end time: ``t_end`` for an adaptive scenario, else ``steps * dt``."""
+    sc = result.scenario
+    return float(sc.t_end) if getattr(sc, "adaptive", False) else _steps(result) * float(sc.dt)
 
 
 def summary_dict(result: CompareResult, command: str) -> dict[str, Any]:
@@ -87,15 +102,20 @@ def summary_dict(result: CompareResult, command: str) -> dict[str, Any]:
         "agree": v.agree, "note": v.note,
     } for v in result.verdicts]
     ref = result.reference
-    reference = {"label": ref.label, "max_abs_energy_error": result.metrics[ref.label].max_abs_energy_error,
+    reference = {"label": ref.label, "choice": result.reference_choice,
+                 "max_abs_energy_error": result.metrics[ref.label].max_abs_energy_error,
                  "energy_limit": REFERENCE_ENERGY_LIMIT, "reliable": not result.reference_problem,
                  "problem": result.reference_problem}
     steps = _steps(result)
     scenario = {"name": sc.name, "source": str(getattr(sc, "source", "")), "sha256": getattr(sc, "sha256", ""),
                 "bodies": len(sc.masses), "G": sc.G, "softening": sc.softening, "dt": sc.dt, "steps": steps,
-                "t_end": steps * sc.dt, "samples": result.reference.n_samples}
+                "t_end": _end_time(result), "samples": result.reference.n_samples,
+                "adaptive": bool(getattr(sc, "adaptive", False))}
+    if scenario["adaptive"]:
+        scenario["output_interval"] = float(sc.grid_dt)
     return json_safe({"format": SUMMARY_FORMAT, "format_version": SUMMARY_VERSION, "command": command,
-                   "scenario": scenario, "runs": runs, "reference": reference, "pairs": pairs,
+                   "scenario": scenario, "runs": runs, "reference": reference,
+                   "references": reference_rows(result), "pairs": pairs,
                    "verdict": result.verdict, "passed": result.passed, "failed_pairs": result.failed_pairs,
                    "untestable_pairs": result.untestable_pairs, "notes": result.notes,
                    "provenance": provenance()})
@@ -111,7 +131,7 @@ def write_h5(result: CompareResult, path: Path, command: str) -> Path:
     # Each group is built in memory and copied in whole, so that a full disk is one clean error.
     with new_file(tmp) as f:
         write_file_attrs(f, {**attrs, "command": command, "passed": result.passed, "verdict": result.verdict})
-        for rec in [*result.runs, *result.twins.values(), result.reference]:
+        for rec in [*result.runs, *result.twins.values(), *(result.references.values() or [result.reference])]:
             with in_memory() as memory:
                 group = write_trace_group(memory, rec.label, rec, names=list(sc.names), masses=sc.masses,
                                           attrs=attrs)
@@ -137,7 +157,8 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
                           fmt(m.steps_per_second), status])
     runs.caption = ("Reference steps are IAS15's adaptive steps. Wall time: orbitsim, the whole sampled run "
                     "(its diagnostics are computed inside the compiled loop), after Numba's compile/cache "
-                    "load; REBOUND, the time inside sim.steps() only, without reading samples back.")
+                    "load; REBOUND, the time inside sim.steps() (IAS15: sim.integrate) only, without reading "
+                    "samples back.")
     pairs = Table(["pair", "max rel. position difference", f"at t [{time_unit}]", "allowed there",
                    "allowed set by", "worst difference / allowed", "twin divergence", "verdict",
                    "why they should agree"], [
@@ -150,8 +171,10 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
                      f"{TESTABLE_LIMIT:g} of that size the agreement is not testable, and where the IAS15 "
                      f"reference's |dE/E| exceeds {REFERENCE_ENERGY_LIMIT:g} neither is any verdict "
                      "(see docs/compare.md).")
-    sections = [Section("Scenario", [scenario_table(sc, steps=_steps(result), samples=result.reference.n_samples)]),
-                Section("Runs", [runs])]
+    table = scenario_table(sc, steps=_steps(result), samples=result.reference.n_samples, end_time=_end_time(result))
+    sections = [Section("Scenario", [table]), Section("Runs", [runs])]
+    if result.references:
+        sections.append(Section("IAS15 references", [references_table(result)]))
     sections.append(Section("Matched pairs", [pairs] if result.verdicts else ["No matched pairs were run."]))
     sections.append(Section("Figures", [Figure(p.name, _FIGURE_CAPTIONS[name]) for name, p in figures.items()]))
     if result.notes:

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.metrics import TESTABLE_LIMIT, position_error, relative_position_difference
+from orbitsim.analysis.metrics import TESTABLE_LIMIT, pair_steps, position_error, relative_position_difference
 from orbitsim.analysis.plotstyle import (
     REFERENCE_COLOR,
     Palette,
@@ -34,6 +34,7 @@ def run_colors(result: Any) -> dict[str, str]:
     """Colour of each run label, stable across figures: a REBOUND run takes the colour of its
     built-in matched orbitsim partner, so a pair that agrees reads as one colour."""
     family = {r.label: r.integrator if r.engine == "orbitsim" else f"rebound {r.key}" for r in result.runs}
+    family.update({r.label: "ias15" for r in getattr(result, "references", {}).values()})
     for verdict in result.verdicts:
         if verdict.pair.builtin:
             family[verdict.rebound_label] = verdict.pair.orbitsim
@@ -75,6 +76,13 @@ def _draw_series(ax: Any, time: np.ndarray, values: np.ndarray, color: str, labe
     ax.plot(t[mask], positive(v)[mask], color=color, lw=1.4, label=label, **style)
 
 
+def _other_ias15(result: Any, engine: str) -> list[RunRecord]:
+    """The IAS15 of ``engine``'s code when it is not the reference (drawn in that code's panel)."""
+    refs = getattr(result, "references", {})
+    rec = refs.get(engine)
+    return [rec] if rec is not None and rec is not result.reference else []
+
+
 def energy_figure(result: Any, path: Path) -> Path:
     """|dE/E| against time on log axes, orbitsim left, REBOUND right, reference in both."""
     time_unit, _ = unit_labels(result.scenario.units)
@@ -82,7 +90,7 @@ def energy_figure(result: Any, path: Path) -> Path:
     with figure_style() as plt:
         fig, axes = _engine_panels(plt, f"Relative energy error: {result.scenario.name}")
         for ax, engine in zip(axes, ("orbitsim", "rebound"), strict=True):
-            shown = [r for r in result.runs if r.engine == engine]
+            shown = [r for r in result.runs if r.engine == engine] + _other_ias15(result, engine)
             for rec in shown:
                 _draw_series(ax, rec.time, rec.energy_error, colors[rec.label], _short(rec))
             ref = result.reference
@@ -101,7 +109,7 @@ def position_error_figure(result: Any, path: Path) -> Path:
     with figure_style() as plt:
         fig, axes = _engine_panels(plt, f"Position error against the IAS15 reference: {result.scenario.name}")
         for ax, engine in zip(axes, ("orbitsim", "rebound"), strict=True):
-            shown = [r for r in result.runs if r.engine == engine]
+            shown = [r for r in result.runs if r.engine == engine] + _other_ias15(result, engine)
             for rec in shown:
                 _draw_series(ax, rec.time, position_error(rec, result.reference), colors[rec.label], _short(rec))
             ax.set_yscale("log")
@@ -124,7 +132,7 @@ def pair_figure(result: Any, path: Path) -> Path | None:
             diff = relative_position_difference(ours.positions, theirs.positions)
             twin = result.twins.get(verdict.pair.rebound.key)
             twin_diff = relative_position_difference(twin.positions, theirs.positions) if twin else None
-            allowed = allowed_difference(theirs.step[: diff.size], twin_diff)
+            allowed = allowed_difference(pair_steps(theirs)[: diff.size], twin_diff)
             color = colors[verdict.orbitsim_label]
             verdict_text = verdict.label
             t = theirs.time[: diff.size]
@@ -147,7 +155,7 @@ def pair_figure(result: Any, path: Path) -> Path | None:
 def orbits_figure(result: Any, path: Path) -> Path:
     """Orbits in the x-y plane: the reference and every run, one panel each."""
     _, length_unit = unit_labels(result.scenario.units)
-    records = [result.reference, *result.runs]
+    records = [result.reference, *_other_ias15(result, "orbitsim"), *_other_ias15(result, "rebound"), *result.runs]
     rows, cols = grid_shape(len(records))
     with figure_style() as plt:
         fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.5 * rows + 0.6), squeeze=False,

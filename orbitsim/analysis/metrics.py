@@ -104,12 +104,28 @@ def relative_position_difference(positions: np.ndarray, reference: np.ndarray) -
     return delta / np.where(scale > 0.0, scale, 1.0)
 
 
+#: Sample times of two runs count as the same when they differ by at most this (relative): an
+#: adaptive run lands on k * interval, a fixed-dt run on n * dt, equal up to round-off.
+SAME_TIME_RTOL = 1e-9
+
+
 def _aligned(a: RunRecord, b: RunRecord) -> int:
-    """Number of leading samples the two records share; raises if their steps differ there."""
+    """Number of leading samples the two records share; raises if they are sampled at other
+    steps there (runs of one grid) or, across grids (an adaptive run beside fixed-dt ones), at
+    other times."""
     k = min(a.n_samples, b.n_samples)
-    if not np.array_equal(a.step[:k], b.step[:k]):
-        raise ValueError(f"{a.label} and {b.label} are not sampled at the same steps")
+    if np.array_equal(a.step[:k], b.step[:k]):
+        return k
+    ta, tb = a.time[:k], b.time[:k]
+    if not np.all(np.abs(ta - tb) <= SAME_TIME_RTOL * np.maximum(np.abs(ta), np.abs(tb))):
+        raise ValueError(f"{a.label} and {b.label} are not sampled at the same times")
     return k
+
+
+def pair_steps(record: RunRecord) -> np.ndarray:
+    """Steps taken up to each sample: an adaptive run's own (``extra["steps_taken"]``), else ``step``."""
+    taken = record.extra.get("steps_taken") if record.extra else None
+    return np.asarray(taken if taken is not None else record.step, dtype=np.int64)
 
 
 def position_error(record: RunRecord, reference: RunRecord) -> np.ndarray:
@@ -273,11 +289,12 @@ def pair_verdict(pair: MatchedPair, ours: RunRecord, theirs: RunRecord,
     Runs that stop at different samples (one diverged, the other not) disagree outright.
     """
     diff = position_error(ours, theirs)
-    steps = theirs.step[: diff.size]
+    taken = pair_steps(theirs)
+    steps = taken[: diff.size]
     twin_series = _twin_series(twin, theirs, diff.size)
     allowed = allowed_difference(steps, twin_series)
     twin_raised = allowed > nominal_tolerance(steps)  # the twin term set the allowed value there
-    nominal = float(nominal_tolerance(int(theirs.step[-1]) if theirs.n_samples else 0))
+    nominal = float(nominal_tolerance(int(taken[-1]) if taken.size else 0))
     note = ""
     if diff.size == 0:
         ratio, worst, within, note = math.nan, 0, False, "no shared samples"

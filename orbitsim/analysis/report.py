@@ -84,8 +84,9 @@ def json_safe(value: Any) -> Any:
     return value
 
 
-def scenario_table(scenario: Any, *, steps: int, samples: int) -> Table:
-    """The scenario's defining numbers (what a reader needs to rerun it)."""
+def scenario_table(scenario: Any, *, steps: int, samples: int, end_time: float | None = None) -> Table:
+    """The scenario's defining numbers (what a reader needs to rerun it); ``end_time`` defaults to
+    ``steps * dt``."""
     rows = [
         ["name", str(scenario.name)],
         ["description", str(getattr(scenario, "description", "") or "")],
@@ -98,7 +99,7 @@ def scenario_table(scenario: Any, *, steps: int, samples: int) -> Table:
         ["scenario integrator", str(scenario.integrator)],
         ["dt", repr(float(scenario.dt))],
         ["steps", str(steps)],
-        ["end time", fmt(steps * float(scenario.dt), 10)],
+        ["end time", fmt(steps * float(scenario.dt) if end_time is None else end_time, 10)],
         ["samples", str(samples)],
     ]
     return Table(["", "value"], [r for r in rows if r[1]])

@@ -65,7 +65,8 @@ def load_with_overrides(scenario: str, dt: float | None, steps: int | None, t_en
 def time_options(func: Any) -> Any:
     """--dt, --steps, --t-end (shared with ``orbitsim convergence``)."""
     func = click.option("--t-end", type=FINITE_POSITIVE, default=None,
-                        help="End time instead of the scenario's (whole steps that fit). Example: --t-end 100")(func)
+                        help="End time instead of the scenario's (whole steps that fit; an adaptive scenario "
+                             "ends on it exactly). Example: --t-end 100")(func)
     func = click.option("--steps", type=click.IntRange(min=1), default=None,
                         help="Number of steps instead of the scenario's. Example: --steps 5000")(func)
     return click.option("--dt", type=FINITE_POSITIVE, default=None,
@@ -83,8 +84,11 @@ def time_options(func: Any) -> Any:
 @click.option("--rebound", "rebound_schemes", default=None, metavar="A,B,...",
               help="REBOUND integrators as NAME[:OPTION]: leapfrog[:2|4|6|8], whfast, saba[:TYPE], ias15 "
                    "(default: the REBOUND partner of each orbitsim integrator, e.g. leapfrog:4 for "
-                   "leapfrog4, plus whfast when body 0 dominates). IAS15 always runs as the reference. "
+                   "leapfrog4, plus whfast when body 0 dominates). IAS15 always runs as a reference. "
                    "Example: --rebound leapfrog:4,whfast")
+@click.option("--reference", type=click.Choice(["rebound", "orbitsim"]), default="rebound", show_default=True,
+              help="Whose IAS15 every run is measured against: REBOUND's or orbitsim's native ias15. Both "
+                   "always run and are reported side by side. Example: --reference orbitsim")
 @click.option("--pair", "pairs", multiple=True, metavar="ORBITSIM=REBOUND[:OPT]",
               help="Also judge this pair as matched (both are run). A pair that is not really the same "
                    "scheme fails, which is how the verdict itself is tested. Example: --pair verlet=leapfrog:4")
@@ -96,16 +100,25 @@ def time_options(func: Any) -> Any:
 @click.pass_context
 @reports_errors
 def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | None,
-            rebound_schemes: str | None, pairs: tuple[str, ...], dt: float | None, steps: int | None,
-            t_end: float | None, threads: int | None, force: bool, quiet: bool) -> None:
+            rebound_schemes: str | None, reference: str, pairs: tuple[str, ...], dt: float | None,
+            steps: int | None, t_end: float | None, threads: int | None, force: bool, quiet: bool) -> None:
     """Run SCENARIO in orbitsim and in REBOUND and cross-check them.
 
-    Every run starts from the same state with the same G, softening, dt and sample steps; a REBOUND
-    IAS15 run sampled at the same times is the reference. For each run the report gives max |dE/E|,
+    Every run starts from the same state with the same G, softening, dt and sample steps. orbitsim's
+    ias15 and REBOUND's IAS15 both run, landing exactly on the same times, and one of them is the
+    reference (--reference, default rebound); the report shows the two side by side with their
+    mutual position difference. For each run the report gives max |dE/E|,
     the drift of dE/E (least-squares slope), the final position error against the reference, wall
     time and steps per second. Matched pairs (orbitsim leapfrog/leapfrog4/6/8 and REBOUND leapfrog
     of order 2/4/6/8; wisdom_holman and WHFast) must agree within a tolerance of 1e-9 at 1e4 steps,
-    growing as n^1.5 and with the scenario's own round-off amplification (docs/compare.md).
+    growing as n^1.5 and with the scenario's own round-off amplification (docs/compare.md). When
+    ias15 is compared (the scenario's integrator, or in --integrators), the two IAS15s are a pair
+    too, n counting IAS15's own steps.
+
+    An adaptive scenario (integrator: ias15) is sampled on its output grid (output.interval, and
+    t_end exactly); by default only ias15 is compared, and fixed-dt schemes named with
+    --integrators or --rebound step by the scenario's dt (ias15's first trial step), which must
+    land on every output time.
 
     A pair agrees only if its tolerance still tests something: where round-off amplification (chaos,
     close encounters, measured by a REBOUND twin run) raises the allowed difference above 1e-3 of the
@@ -127,8 +140,10 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
       orbitsim compare outer_solar_system -o cmp/
       orbitsim compare two_body_eccentric -o ecc/ --integrators leapfrog4,rk4 --steps 5000
       orbitsim compare figure_eight -o fig8/ --rebound leapfrog:4,leapfrog:6,saba:10_6_4
+      orbitsim compare pythagorean -o pyth/ --reference orbitsim
     """
     from orbitsim.analysis.compare import default_integrators, default_rebound, run_compare
+    from orbitsim.analysis.compare_ias15 import fixed_step_plan, output_grid
     from orbitsim.analysis.compare_output import write_compare_outputs
     from orbitsim.reference.bridge import parse_rebound_scheme
     from orbitsim.reference.pairs import parse_pair
@@ -137,17 +152,25 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
     try:
         names = split_list(integrators) or default_integrators(sc)
         schemes = ([parse_rebound_scheme(s) for s in split_list(rebound_schemes)] if rebound_schemes
-                   else default_rebound(names, sc.masses))
+                   else default_rebound(names, sc.masses, whfast=not sc.adaptive))
         extra = [parse_pair(p) for p in pairs]
+        if sc.adaptive and ([n for n in names if n != "ias15"] or [s for s in schemes if s.fixed_step] or extra):
+            fixed_step_plan(sc, output_grid(sc)[4])  # fixed-dt runs must land on the output times
     except ValueError as err:
         fail(str(err))
     prepare_outdir(outdir, OUTPUT_FILES, force)
     say = (lambda _m: None) if quiet else click.echo
-    say(f"orbitsim compare: {sc.name}, {sc.n_bodies} bodies, dt = {sc.dt:g}, {sc.steps} steps")
+    if sc.adaptive:
+        say(f"orbitsim compare: {sc.name}, {sc.n_bodies} bodies, {sc.integrator} (first dt = {sc.dt:g}) to t = "
+            f"{sc.t_end:g}, {sc.steps} output intervals of {sc.grid_dt:g}; reference: {reference}'s IAS15")
+    else:
+        say(f"orbitsim compare: {sc.name}, {sc.n_bodies} bodies, dt = {sc.dt:g}, {sc.steps} steps; "
+            f"reference: {reference}'s IAS15")
     if sc.n_bodies >= SLOW_REFERENCE_N:
-        warn(f"{sc.n_bodies} bodies: the IAS15 reference costs several O(N^2) force evaluations per adaptive "
-             "step and will dominate the run time (plummer_1k: ~0.2 s per IAS15 step)")
-    result = run_compare(sc, integrators=names, rebound=schemes, extra_pairs=extra, threads=threads, progress=say)
+        warn(f"{sc.n_bodies} bodies: each IAS15 reference (orbitsim's and REBOUND's) costs several O(N^2) force "
+             "evaluations per adaptive step and will dominate the run time (plummer_1k: ~0.2 s per IAS15 step)")
+    result = run_compare(sc, integrators=names, rebound=schemes, extra_pairs=extra, threads=threads, progress=say,
+                         reference=reference)
     paths = write_compare_outputs(result, outdir, command_line(ctx))
     if result.reference_problem:
         say(f"  WARNING  reference unreliable: {result.reference_problem}")

@@ -28,7 +28,7 @@ _OPTION_FOR_KEY = {"integrator": "--integrator", "dt": "--dt", "steps": "--steps
 #: A relative energy error beyond this says the run's trajectory is not to be trusted, whatever the
 #: scheme: a well-resolved orbit keeps its energy to far better than 1% (the bundled planetary and
 #: two-body scenarios to below 1e-4), so crossing it means a close approach the step could not
-#: follow (the bundled pythagorean problem, on purpose) or a scheme that drifts (explicit Euler).
+#: follow (the bundled pythagorean problem with a fixed-dt scheme) or a scheme that drifts (explicit Euler).
 UNTRUSTWORTHY_ENERGY_ERROR = 0.01
 #: Options that would change what an extended run computes (``--from`` keeps the stored ones).
 _FIXED_BY_FROM = ("dt", "every", "interval", "positions")

@@ -93,6 +93,12 @@ MATCHED_PAIRS: tuple[MatchedPair, ...] = (
                 "Wisdom-Holman map, same coordinates and corrector as REBOUND WHFast"),
 )
 
+#: orbitsim's ias15 and REBOUND's IAS15: an adaptive pair, judged by ``orbitsim compare`` when ias15
+#: is among its integrators (the two are its references). Its ``n`` is IAS15's accepted steps.
+IAS15_PAIR = MatchedPair("ias15", ReboundScheme("ias15"),
+                         "IAS15 in both codes: the same Gauss-Radau predictor-corrector, step control "
+                         "(PRS23), epsilon, first trial step and exact finish on every output time")
+
 
 def _registered(name: str) -> str | None:
     """Canonical orbitsim name, or None when the integrator is not registered."""

@@ -70,6 +70,9 @@ def _resolve_integrator_change(scenario: Scenario, changes: dict[str, Any]) -> N
 def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
     if "steps" in changes and "t_end" in changes:
         raise ScenarioError("give only one of steps or t_end, not both", key="t_end")
+    if _adaptive_after(scenario, changes):
+        _resolve_adaptive_time(scenario, changes)
+        return
     dt = check_number(changes.get("dt", scenario.dt), "dt", positive=True)
     if "steps" in changes:
         changes["t_end"] = None
@@ -83,3 +86,32 @@ def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
             changes["steps"] = resolve_steps(t_end, dt)[0]
         except ScenarioError as err:
             raise ScenarioError(err.reason, key=blame) from None
+
+
+def _adaptive_after(scenario: Scenario, changes: dict[str, Any]) -> bool:
+    """Whether the scenario's integrator after ``changes`` chooses its own steps (ias15)."""
+    from orbitsim.scenario.timing import adaptive_integrator
+
+    integrator = changes.get("integrator", scenario.integrator)
+    settings = changes.get("integrator_settings", scenario.integrator_settings)
+    return adaptive_integrator(integrator, settings)
+
+
+def _resolve_adaptive_time(scenario: Scenario, changes: dict[str, Any]) -> None:
+    """An adaptive run's grid is its output grid: ``t_end`` sets the end time exactly and
+    ``steps`` becomes the number of output intervals; ``dt`` (the first trial step) changes neither.
+    A ``steps`` override counts output intervals, so it needs ``output.interval``."""
+    from orbitsim.scenario.model import DEFAULT_SAMPLES
+    from orbitsim.scenario.timing import resolve_grid
+
+    interval = None if "every" in changes else changes.get("interval", scenario.interval)
+    if interval is not None:
+        interval = check_number(interval, "output.interval", positive=True)
+    if "steps" in changes:
+        if interval is None:
+            raise ScenarioError(f"{changes.get('integrator', scenario.integrator)} chooses its own steps: give "
+                                "t_end (the end time), not steps", key="steps")
+        changes["t_end"] = changes["steps"] * interval
+    t_end = check_number(changes.get("t_end", scenario.t_end), "t_end", positive=True)
+    changes["t_end"] = t_end
+    changes["steps"] = resolve_grid(t_end, interval if interval is not None else t_end / DEFAULT_SAMPLES)
