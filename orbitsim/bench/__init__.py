@@ -6,6 +6,7 @@
   and its validation;
 * :mod:`~orbitsim.bench.systems`: the systems benchmarked (generated, or bundled scenarios);
 * :mod:`~orbitsim.bench.engines`: timed stepping through orbitsim's loop and REBOUND's;
+* :mod:`~orbitsim.bench.adaptive`: IAS15 over one span, orbitsim beside REBOUND, per accepted step;
 * :mod:`~orbitsim.bench.probes` and :mod:`~orbitsim.bench.memprobe`: start-up, output overhead,
   memory;
 * :mod:`~orbitsim.bench.ceiling`: the measured hardware ceiling of the force loop;

@@ -23,6 +23,21 @@ A matrix is a list of *groups*; each group has a ``kind`` that says what it meas
       - {name: startup, kind: startup, integrator: verlet}
       - {name: sampling, kind: sampling, n: 9, steps: 200000, every: 100}
       - {name: memory, kind: memory, n: 16384, steps: 3, trace_samples: 10000000}
+      - name: ias15
+        kind: adaptive            # IAS15 over one time span: orbitsim's ias15 beside REBOUND's
+        system: {5: planets, 1000: plummer}   # plummer | planets | a scenario; one, or one per N
+        n: [5, 1000]
+        t_end: {5: 300.0, 1000: 0.05}         # the span from t = 0; one, or one per N
+        first_dt: 0.01            # first trial step of both engines; one, or one per N
+        softening: {5: 0.0, 1000: 0.01}       # one, or one per N
+        epsilon: 1.0e-9           # IAS15's tolerance in both engines
+        engines: [orbitsim, rebound]
+        threads: [1, 0]           # orbitsim only
+
+A value given "per N" is a mapping ``{N: value}`` with one entry for each N of ``n``. An
+``adaptive`` group counts the accepted steps each engine took over the span: the time per step
+is the time over the span divided by that count (a fixed-step ``steps`` group cannot measure an
+adaptive scheme, so ``integrators: all`` there leaves it out and naming it is an error).
 
 Every error is one line naming the file and the key, e.g.
 ``configs/bench.yaml: groups[1].n[2]: expected an integer >= 1, got 'many'``.
@@ -36,12 +51,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from orbitsim.bench._adaptive_fields import ADAPTIVE_KEYS, AdaptiveCase, expand_adaptive, read_adaptive
 from orbitsim.bench._fields import GENERATED_SYSTEMS, BenchMatrixError, Reader
 
 __all__ = [
     "GENERATED_SYSTEMS",
     "KINDS",
     "REBOUND_INTEGRATORS",
+    "AdaptiveCase",
     "BenchMatrix",
     "BenchMatrixError",
     "Group",
@@ -51,7 +68,7 @@ __all__ = [
 ]
 
 #: What a group can measure (see :mod:`orbitsim.bench.runner` for how each is timed).
-KINDS = ("steps", "kernels", "startup", "sampling", "memory")
+KINDS = ("steps", "kernels", "startup", "sampling", "memory", "adaptive")
 
 #: REBOUND schemes and their force evaluations per step: leapfrog of order 2k composes
 #: 1, 3, 9, 17 substeps (the tables in :mod:`orbitsim.integrators.composition`); WHFast uses one.
@@ -69,6 +86,7 @@ _GROUP_KEYS: dict[str, tuple[str, ...]] = {
     "startup": ("integrator", "n", "steps", "cold"),
     "sampling": ("system", "integrator", "n", "steps", "every", "dt", "seed"),
     "memory": ("n", "steps", "trace_n", "trace_samples", "trace_every", "limit_mb"),
+    "adaptive": ADAPTIVE_KEYS,
 }
 _COMMON_GROUP_KEYS = ("name", "kind", "repeats", "warmup", "description")
 
@@ -133,6 +151,11 @@ class BenchMatrix:
                 cases.extend(_expand_steps(group, lookup))
         return cases
 
+    def adaptive_cases(self) -> list[AdaptiveCase]:
+        """Every (N, engine, threads) case of every ``adaptive`` group, in order (for each N the
+        orbitsim cases, one per thread count, then REBOUND)."""
+        return [case for group in self.groups if group.kind == "adaptive" for case in expand_adaptive(group)]
+
 
 def load_matrix(path: str | Path) -> BenchMatrix:
     """Read and validate a matrix file; raises :class:`BenchMatrixError` (one line) on any problem."""
@@ -195,7 +218,7 @@ def _read_steps(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
     p: dict[str, Any] = {
         "system": system,
         "engines": engines,
-        "integrators": tuple(r.integrator_names(g, "integrators", path, ["verlet"])),
+        "integrators": _fixed_step_names(r, g, path),
         "rebound_integrators": tuple(r.strings(g, "rebound_integrators", path, ["leapfrog"],
                                                choices=tuple(REBOUND_INTEGRATORS))),
         "n": tuple(r.sizes(g, "n", path, fixed)),
@@ -216,6 +239,18 @@ def _read_steps(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
     if p["max_steps"] < p["min_steps"]:
         raise r.error(f"{path}.max_steps", f"must be >= min_steps ({p['min_steps']})")
     return p
+
+
+def _fixed_step_names(r: Reader, g: Mapping[str, Any], path: str) -> tuple[str, ...]:
+    """The ``integrators`` of a steps group; an adaptive scheme is refused (see :func:`_orbitsim_names`)."""
+    from orbitsim.integrators.registry import get_spec
+
+    names = r.integrator_names(g, "integrators", path, ["verlet"])
+    for k, name in enumerate(names):
+        if name != "all" and get_spec(name).adaptive:
+            raise r.error(f"{path}.integrators[{k}]", f"{name} is adaptive: a grid interval is not its step; "
+                          "measure it in a group of kind: adaptive")
+    return tuple(names)
 
 
 def _read_kernels(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
@@ -253,7 +288,7 @@ def _read_memory(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
 
 _READERS: dict[str, Callable[[Reader, Mapping[str, Any], str], dict[str, Any]]] = {
     "steps": _read_steps, "kernels": _read_kernels, "startup": _read_startup, "sampling": _read_sampling,
-    "memory": _read_memory,
+    "memory": _read_memory, "adaptive": read_adaptive,
 }
 
 
@@ -269,7 +304,10 @@ def _orbitsim_names(group: Group, lookup: Callable[[str], tuple[str, int]]) -> l
     if tuple(names) == ("all",):
         from orbitsim.integrators.registry import INTEGRATORS
 
-        names = tuple(spec.name for spec in INTEGRATORS)
+        # An adaptive scheme (IAS15) takes as many steps of its own as each grid interval needs:
+        # timing "dt steps" of it would report a grid interval as a step. The adaptive kind
+        # counts its accepted steps instead.
+        names = tuple(spec.name for spec in INTEGRATORS if not spec.adaptive)
     return [lookup(name) for name in names]
 
 

@@ -1,4 +1,4 @@
-"""``results.md``: the targets table, the stepping cases side by side, and the probes."""
+"""``results.md``: the targets table, the stepping and IAS15 cases side by side, and the probes."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Any
 
 from orbitsim.bench.targets import paired_ratio
 
-__all__ = ["markdown", "side_by_side", "targets_table"]
+__all__ = ["adaptive_table", "markdown", "side_by_side", "targets_table"]
 
 #: REBOUND scheme an orbitsim integrator is compared with in the side-by-side table.
 PARTNER = {"leapfrog4": "leapfrog:4", "leapfrog6": "leapfrog:6", "leapfrog8": "leapfrog:8",
@@ -59,6 +59,25 @@ def side_by_side(doc: dict[str, Any]) -> str:
                      f"{_time(c['per_step_s']['median'])} | {scheme} | {_time(twin['per_step_s']['median'])} | "
                      f"{ratio:.3g} ({1 / ratio:.3g}x faster) | {cpu:.3g} |")
     return "\n".join(lines) if len(lines) > 2 else "(no case has a REBOUND partner)"
+
+
+def adaptive_table(doc: dict[str, Any]) -> str:
+    """orbitsim's IAS15 against REBOUND's over the same span: accepted steps and time per step of
+    each, and REBOUND / orbitsim per step (> 1: orbitsim is faster), paired by round."""
+    by_id = {c["id"]: c for c in doc.get("adaptive", [])}
+    lines = ["| group | N | system | to t | threads | orbitsim steps (rejected) | time/step | REBOUND steps | "
+             "time/step | REBOUND / orbitsim | same, CPU time | first call (jit) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for c in doc.get("adaptive", []):
+        ratio = c.get("rebound_over_orbitsim")
+        twin = by_id.get(ratio["twin"]) if ratio else None
+        if ratio is None or twin is None:
+            continue
+        lines.append(f"| {c['group']} | {c['n']} | {c['system']} | {c['t_end']:g} | {c['threads']} | "
+                     f"{c['steps']} ({c.get('steps_rejected', '-')}) | {_spread(c['per_step_s'])} | {twin['steps']} | "
+                     f"{_spread(twin['per_step_s'])} | {ratio['wall']:.3g} | {ratio['cpu']:.3g} | "
+                     f"{_time(c['first_call_s'])} ({c['jit']}) |")
+    return "\n".join(lines) if len(lines) > 2 else "(no IAS15 case has a REBOUND partner)"
 
 
 def _cases_table(cases: list[dict[str, Any]]) -> str:
@@ -137,6 +156,12 @@ def markdown(doc: dict[str, Any]) -> str:
                      "counting N(N-1) when each pair is computed once.")
     parts += ["", "## Targets", "", targets_table(doc), "", "## orbitsim beside REBOUND (same run, interleaved)",
               "", side_by_side(doc), ""]
+    if doc.get("adaptive"):
+        epsilon = " or ".join(f"{e:g}" for e in sorted({c["epsilon"] for c in doc["adaptive"]}))
+        parts += ["## orbitsim beside REBOUND: IAS15 over the same span (interleaved)", "",
+                  f"Each repeat integrates from t = 0 with epsilon = {epsilon}; the time per step is "
+                  "the time over the span divided by the engine's own accepted steps.", "",
+                  adaptive_table(doc), ""]
     groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for c in doc.get("cases", []):
         groups[c["group"]].append(c)

@@ -31,7 +31,7 @@ Progress = Callable[[str], None]
 
 def quick_matrix(matrix: BenchMatrix) -> BenchMatrix:
     """The same matrix, cut down for ``--quick``: at most 3 repeats and 1 warm-up, a tenth of the
-    work or steps (never below ``min_steps``), no long trace run."""
+    work, steps (never below ``min_steps``) or span, no long trace run."""
     groups = []
     for g in matrix.groups:
         p = dict(g.params)
@@ -45,6 +45,8 @@ def quick_matrix(matrix: BenchMatrix) -> BenchMatrix:
             p["trace_samples"] = 0
         elif g.kind == "kernels":
             p["work"] = p["work"] / 10.0
+        elif g.kind == "adaptive":
+            p["t_end"] = {n: t / 10.0 for n, t in p["t_end"].items()}
         groups.append(dataclasses.replace(g, repeats=min(g.repeats, 3), warmup=min(g.warmup, 1), params=p))
     return dataclasses.replace(matrix, groups=tuple(groups))
 
@@ -86,13 +88,12 @@ def _case_record(case: StepsCase, stepper: Any, first: float, runs: list[tuple[f
     }
 
 
-def _run_n(cases: list[StepsCase], progress: Progress, threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
-    """Every case of one N: build and warm up each, then interleaved timed repeats."""
-    from orbitsim.bench.engines import make_stepper
-    from orbitsim.bench.systems import build_system
-
-    systems: dict[str, Any] = {}
-    ready: list[tuple[StepsCase, Any, float]] = []
+def select_cases(cases: list[Any], threads: tuple[int, int],
+                 key: Callable[[Any], str] = lambda c: c.case_id) -> tuple[list[Any], list[dict]]:
+    """The cases to time, orbitsim's with the default thread count filled in, and the skipped ones
+    with their reason: more threads than Numba has, or the same case as another once filled in
+    (threads [1, 0] when the default is 1 thread). ``threads`` is (default, Numba's maximum)."""
+    usable: list[Any] = []
     skipped: list[dict] = []
     seen: set[str] = set()
     default, max_threads = threads
@@ -101,12 +102,23 @@ def _run_n(cases: list[StepsCase], progress: Progress, threads: tuple[int, int])
             case = dataclasses.replace(case, threads=default)
         if case.threads is not None and case.threads > max_threads:
             skipped.append({"id": case.case_id, "reason": f"{case.threads} threads > NUMBA_NUM_THREADS={max_threads}"})
-            continue
-        key = f"{case.case_id}/{case.steps}"
-        if key in seen:  # e.g. threads [1, 0] when the default is 1 thread
+        elif key(case) in seen:
             skipped.append({"id": case.case_id, "reason": "same thread count as another case"})
-            continue
-        seen.add(key)
+        else:
+            seen.add(key(case))
+            usable.append(case)
+    return usable, skipped
+
+
+def _run_n(cases: list[StepsCase], progress: Progress, threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
+    """Every case of one N: build and warm up each, then interleaved timed repeats."""
+    from orbitsim.bench.engines import make_stepper
+    from orbitsim.bench.systems import build_system
+
+    systems: dict[str, Any] = {}
+    ready: list[tuple[StepsCase, Any, float]] = []
+    usable, skipped = select_cases(cases, threads, key=lambda c: f"{c.case_id}/{c.steps}")
+    for case in usable:
         if case.system not in systems:
             systems[case.system] = build_system(case.system, case.n, seed=case.seed)
         stepper = make_stepper(case, systems[case.system])
@@ -175,12 +187,21 @@ def run_matrix(matrix: BenchMatrix, *, threads: int | None = None, quick: bool =
     doc["versions"] = {k[: -len("_version")]: v for k, v in doc["machine"].items() if k.endswith("_version")}
     doc["threads"] = default_threads
     doc["ceiling"] = measure_ceiling() if with_ceiling else None
-    doc["cases"], doc["probes"], doc["skipped"] = [], [], []
+    doc["cases"], doc["adaptive"], doc["probes"], doc["skipped"] = [], [], [], []
     for group in matrix.groups:
         set_num_threads(default_threads)
         if group.kind == "steps":
             records, skipped = _run_steps_group(group, matrix, say, (default_threads, max_threads))
             doc["cases"] += records
+            doc["skipped"] += skipped
+        elif group.kind == "adaptive":
+            # Apart from "cases": an adaptive case has no fixed step count or pair rate, and the
+            # fixed-step tables and figures read every entry of "cases".
+            from orbitsim.bench.adaptive import run_adaptive_group
+
+            cases = [c for c in matrix.adaptive_cases() if c.group == group.name]
+            records, skipped = run_adaptive_group(cases, say, (default_threads, max_threads))
+            doc["adaptive"] += records
             doc["skipped"] += skipped
         else:
             doc["probes"].append(_run_probe(group, say))

@@ -6,6 +6,10 @@ the same group and the same N, which the runner measured interleaved (round r ti
 once), and each ratio is the median over rounds of the ratio within a round (:func:`paired_ratio`):
 the load on this shared machine changes from second to second, and a round's two timings are the
 closest in time. ``margin`` is always oriented so that >= 1 means the target is met.
+
+The IAS15 targets read the ``adaptive`` records (:mod:`orbitsim.bench.adaptive`): the two engines
+integrate the same span but choose their own steps, so their ratio is of time per *accepted*
+step, each engine's time over the span divided by its own count.
 """
 
 from __future__ import annotations
@@ -31,6 +35,13 @@ STARTUP_WARM_S = 1.0
 SAMPLING_OVERHEAD = 0.05
 #: Peak RSS of a 16,384-body run (MiB).
 MEMORY_16K_MB = 300.0
+#: IAS15 at N = 5: REBOUND IAS15's time per step over orbitsim's, at least this (level or faster).
+IAS15_SMALL_RATIO = 1.0
+#: IAS15 at N ~ 1000 must beat REBOUND IAS15 by verlet's ratio over REBOUND leapfrog at this N, the
+#: same force work per evaluation, measured in the same run ...
+IAS15_VERLET_N = 1024
+#: ... or, when the run has no verlet/leapfrog pair there, by this much.
+IAS15_LARGE_FALLBACK = 5.0
 #: RSS growth allowed from the 10-30% of a long trace-writing run to its last 20% (medians of
 #: the readings, :func:`orbitsim.bench.probes.rss_growth`), as a fraction of the settled RSS.
 TRACE_GROWTH = 0.05
@@ -129,6 +140,67 @@ def _small_n(name: str) -> Callable[[Doc], dict[str, Any]]:
     return check
 
 
+def _ias15_case(doc: Doc, n: int, near: bool = False) -> dict[str, Any] | None:
+    """The orbitsim IAS15 record paired with REBOUND at N (``near``: the closest N within a factor
+    1.5), from the pair with the most interleaved rounds, then the most threads."""
+    found = [c for c in doc.get("adaptive", []) if c["engine"] == "orbitsim" and "rebound_over_orbitsim" in c
+             and (c["n"] == n or (near and n / 1.5 <= c["n"] <= n * 1.5))]
+    if not found:
+        return None
+    return max(found, key=lambda c: (-abs(c["n"] - n), c["rebound_over_orbitsim"]["rounds"], c["threads"]))
+
+
+def _ias15_measured(doc: Doc, case: dict[str, Any]) -> str:
+    r = case["rebound_over_orbitsim"]
+    twin = next(c for c in doc["adaptive"] if c["id"] == r["twin"])
+    return (f"{r['wall']:.2f}x faster (median of {r['rounds']} rounds; to t = {case['t_end']:g}, "
+            f"{case['steps']} steps of {case['per_step_s']['median'] * 1e6:.3g} us on {case['threads']} "
+            f"thread{'s' if case['threads'] != 1 else ''} vs "
+            f"{twin['steps']} of {twin['per_step_s']['median'] * 1e6:.3g} us; CPU time {r['cpu']:.2f}x)")
+
+
+def _ias15_small(doc: Doc) -> dict[str, Any]:
+    label = "ias15 N = 5: time per step vs REBOUND IAS15"
+    required = "<= REBOUND IAS15's (>= 1x faster)"
+    case = _ias15_case(doc, 5)
+    if case is None:
+        return _row("ias15_n5", label, required, None, "not measured", None)
+    ratio = case["rebound_over_orbitsim"]["wall"]
+    return _row("ias15_n5", label, required, ratio, _ias15_measured(doc, case), ratio / IAS15_SMALL_RATIO,
+                f"{case['id']} vs {case['rebound_over_orbitsim']['twin']}")
+
+
+def _verlet_ratio(doc: Doc, threads: int | None) -> tuple[float, str]:
+    """How many times faster verlet's step is than REBOUND leapfrog's at N = 1024 in this run (the
+    throughput group first, then the same thread count as the IAS15 case, then the most rounds),
+    with where it comes from; else the fallback, saying so."""
+    pairs = []
+    for c in doc.get("cases", []):
+        if c["engine"] == "orbitsim" and c["integrator"] == "verlet" and c["n"] == IAS15_VERLET_N:
+            twin = _rebound_twin(doc, c)
+            if twin is not None:
+                pairs.append(((c["group"] == "throughput", c["threads"] == threads,
+                               min(c["repeats"], twin["repeats"]), c["threads"]), c, twin))
+    if not pairs:
+        return IAS15_LARGE_FALLBACK, (f"{IAS15_LARGE_FALLBACK:g}x: no verlet/leapfrog pair at N = "
+                                      f"{IAS15_VERLET_N} in this run, fallback")
+    _, case, twin = max(pairs, key=lambda p: p[0])
+    ratio = paired_ratio(twin, case)
+    return ratio, f"{ratio:.1f}x, verlet's over REBOUND leapfrog ({case['id']})"
+
+
+def _ias15_large(doc: Doc) -> dict[str, Any]:
+    label = "ias15 N = 1000: faster than REBOUND IAS15 by at least verlet's ratio over REBOUND leapfrog"
+    case = _ias15_case(doc, 1000, near=True)
+    need, why = _verlet_ratio(doc, case["threads"] if case else None)
+    required = f">= {why}"
+    if case is None:
+        return _row("ias15_n1000", label, required, None, "not measured", None)
+    ratio = case["rebound_over_orbitsim"]["wall"]
+    return _row("ias15_n1000", label, required, ratio, _ias15_measured(doc, case), ratio / need,
+                f"{case['id']} vs {case['rebound_over_orbitsim']['twin']}")
+
+
 def _startup_warm(doc: Doc) -> dict[str, Any]:
     p = _probe(doc, "startup")
     label = "CLI start-up, tiny scenario, warm cache"
@@ -191,7 +263,7 @@ def _memory_trace(doc: Doc) -> dict[str, Any]:
 #: Every target, in the order of the issue.
 TARGETS: tuple[Callable[[Doc], dict[str, Any]], ...] = (
     _throughput, _speedup, _small_n("semi_implicit_euler"), _small_n("verlet"), _startup_warm,
-    _startup_cold, _sampling, _memory_large, _memory_trace,
+    _startup_cold, _sampling, _memory_large, _memory_trace, _ias15_small, _ias15_large,
 )
 
 

@@ -1,0 +1,220 @@
+"""IAS15 over one time span, orbitsim beside REBOUND: the ``adaptive`` kind of a matrix.
+
+An adaptive scheme chooses its own steps, so "time a fixed number of steps" (the ``steps`` kind)
+does not apply: each repeat integrates the same system from the same initial state from t = 0 to
+``t_end``, and the time per step is that time divided by the number of *accepted* steps the engine
+took (rejected trials are part of the cost, as they are of a real run). The two engines do not
+take the same number of steps, so both counts are recorded beside the times.
+
+* orbitsim: ``Simulation(..., "ias15", dt=t_end)`` with the settings ``epsilon``, ``first_dt``
+  and ``t_end``, run through :meth:`~orbitsim.simulation.Simulation.chunks` (the loop every run
+  uses) sampling t = 0 and t_end only; the steps from
+  :func:`orbitsim.integrators.ias15.counters`.
+* REBOUND: ``sim.integrator = "ias15"`` with the same ``epsilon`` and first ``dt``,
+  ``gravity = "basic"``, ``sim.integrate(t_end, exact_finish_time=1)`` (orbitsim also lands
+  exactly on its last sample); the steps from ``sim.steps_done``.
+
+Building each repeat's simulation is outside the timed span. The cases of one N are interleaved
+(repeat 1 of each, then repeat 2, ...) and every ratio is the median over rounds of the ratio
+within a round, as everywhere in the suite.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+from orbitsim.bench._adaptive_fields import AdaptiveCase
+from orbitsim.bench.stats import paired_median, summarise
+from orbitsim.bench.systems import System
+
+__all__ = ["OrbitsimIAS15", "ReboundIAS15", "Timed", "run_adaptive_group"]
+
+#: One timed repeat: (wall seconds, CPU seconds, accepted steps, engine counters).
+Timed = tuple[float, float, int, dict[str, int]]
+
+
+class OrbitsimIAS15:
+    """orbitsim's ``ias15`` over one case's span, a fresh :class:`Simulation` per repeat."""
+
+    engine = "orbitsim"
+
+    def __init__(self, case: AdaptiveCase, system: System) -> None:
+        self.case = case
+        self.system = system
+        self.threads_used = 0
+        self.jit = "n/a"
+
+    def _simulation(self, t_end: float) -> Any:
+        from orbitsim.simulation import Simulation
+
+        s, c = self.system, self.case
+        softening = c.softening if s.softening is None else s.softening
+        settings = {"epsilon": c.epsilon, "first_dt": s.dt or c.first_dt, "t_end": t_end}
+        # dt is the output grid of an adaptive scheme: one interval, sampled at 0 and t_end only.
+        sim = Simulation(s.masses.copy(), s.positions.copy(), s.velocities.copy(), "ias15", t_end, s.G,
+                         softening, threads=c.threads, settings=settings)
+        self.threads_used = sim.threads_used
+        return sim
+
+    def _run(self, sim: Any) -> None:
+        import numpy as np
+
+        for _ in sim.chunks(np.array([0, 1], dtype=np.int64), record_positions=False):
+            pass
+        if sim.diverged:
+            raise RuntimeError(f"{self.case.case_id}: the state became non-finite; shorten t_end in the matrix")
+
+    def first_call(self) -> float:
+        """Build and integrate one first trial step's span; returns the seconds (JIT included)."""
+        from orbitsim.bench.engines import _jit_counts
+        from orbitsim.integrators.registry import get_module
+
+        run = get_module("ias15").run
+        before = _jit_counts(run)
+        start = time.perf_counter()
+        self._run(self._simulation(self.system.dt or self.case.first_dt))
+        elapsed = time.perf_counter() - start
+        hits, misses = (a - b for a, b in zip(_jit_counts(run), before, strict=True))
+        self.jit = "compiled" if misses else ("cache" if hits else "in-memory")
+        return elapsed
+
+    def once(self) -> Timed:
+        """Integrate the whole span from the initial state; (wall, CPU, accepted steps, counters)."""
+        from orbitsim.integrators.ias15 import counters
+
+        sim = self._simulation(self.case.t_end)
+        cpu, start = time.process_time(), time.perf_counter()
+        self._run(sim)
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        c = counters(sim.work)
+        return wall, cpu, int(c["steps_accepted"]), {k: int(c[k]) for k in ("steps_rejected", "force_evaluations")}
+
+
+class ReboundIAS15:
+    """REBOUND's IAS15 over the same span, a fresh :class:`rebound.Simulation` per repeat."""
+
+    engine = "rebound"
+
+    def __init__(self, case: AdaptiveCase, system: System) -> None:
+        self.case = case
+        self.system = system
+        self.threads_used = 1  # REBOUND's basic gravity is serial unless built with OpenMP
+        self.jit = "n/a"
+
+    def _simulation(self) -> Any:
+        from orbitsim.reference.bridge import rebound_simulation
+
+        s, c = self.system, self.case
+        softening = c.softening if s.softening is None else s.softening
+        sim = rebound_simulation(s.masses, s.positions, s.velocities, G=s.G, softening=softening,
+                                 dt=s.dt or c.first_dt, scheme="ias15")
+        sim.gravity = "basic"
+        sim.integrator.epsilon = c.epsilon
+        return sim
+
+    def first_call(self) -> float:
+        """Build the simulation and integrate one first trial step's span; returns the seconds."""
+        start = time.perf_counter()
+        self._simulation().integrate(self.system.dt or self.case.first_dt, exact_finish_time=1)
+        return time.perf_counter() - start
+
+    def once(self) -> Timed:
+        """Integrate the whole span from the initial state; (wall, CPU, accepted steps, {})."""
+        sim = self._simulation()
+        cpu, start = time.process_time(), time.perf_counter()
+        sim.integrate(self.case.t_end, exact_finish_time=1)
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return wall, cpu, int(sim.steps_done), {}
+
+
+Stepper = OrbitsimIAS15 | ReboundIAS15
+
+
+def _prepare(cases: list[AdaptiveCase], threads: tuple[int, int]) -> tuple[list, list[dict]]:
+    """Build, compile and warm up each case of one N; (ready cases, skipped cases)."""
+    from orbitsim.bench.runner import select_cases
+    from orbitsim.bench.systems import build_system
+
+    systems: dict[str, System] = {}
+    ready: list[tuple[AdaptiveCase, Stepper, float]] = []
+    usable, skipped = select_cases(cases, threads)
+    for case in usable:
+        if case.system not in systems:
+            systems[case.system] = build_system(case.system, case.n, seed=case.seed)
+        stepper: Stepper = (OrbitsimIAS15 if case.engine == "orbitsim" else ReboundIAS15)(case, systems[case.system])
+        first = stepper.first_call()
+        # Only orbitsim is warmed up: its first whole span still loads caches and touches memory,
+        # while REBOUND's C code has nothing to load, and at N = 1000 its warm-up would cost as
+        # much as a repeat.
+        for _ in range(case.warmup if case.engine == "orbitsim" else 0):
+            stepper.once()
+        ready.append((case, stepper, first))
+    return ready, skipped
+
+
+def _record(case: AdaptiveCase, stepper: Stepper, first: float, runs: list[Timed]) -> dict[str, Any]:
+    steps = [n for _, _, n, _ in runs]
+    rec: dict[str, Any] = {
+        "id": case.case_id, "group": case.group, "kind": "adaptive", "engine": case.engine,
+        "integrator": case.integrator, "system": case.system, "n": case.n, "t_end": case.t_end,
+        "first_dt": stepper.system.dt or case.first_dt, "epsilon": case.epsilon, "threads": stepper.threads_used,
+        "repeats": len(runs), "warmup": case.warmup, "steps": steps[-1], "steps_values": steps,
+        "time_s": summarise([w for w, _, _, _ in runs]), "cpu_s": summarise([c for _, c, _, _ in runs]),
+        # Per repeat, each over its own count (the same in every repeat: both engines are deterministic).
+        "per_step_s": summarise([w / max(1, n) for w, _, n, _ in runs]),
+        "cpu_per_step_s": summarise([c / max(1, n) for _, c, n, _ in runs]),
+        "first_call_s": first, "jit": stepper.jit,
+    }
+    rec.update(runs[-1][3])
+    return rec
+
+
+def _pair_with_rebound(records: list[dict[str, Any]]) -> None:
+    """Give each orbitsim record of one N the REBOUND / orbitsim time per step (>1: orbitsim is
+    faster), wall and CPU, paired round by round."""
+    twin = next((r for r in records if r["engine"] == "rebound"), None)
+    if twin is None:
+        return
+    for rec in records:
+        if rec["engine"] == "orbitsim":
+            rec["rebound_over_orbitsim"] = {
+                "twin": twin["id"],
+                "wall": paired_median(twin["per_step_s"]["values"], rec["per_step_s"]["values"]),
+                "cpu": paired_median(twin["cpu_per_step_s"]["values"], rec["cpu_per_step_s"]["values"]),
+                "rounds": min(rec["repeats"], twin["repeats"])}
+
+
+def _run_n(cases: list[AdaptiveCase], progress: Callable[[str], None],
+           threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
+    """Every case of one N: prepared, then interleaved timed repeats."""
+    ready, skipped = _prepare(cases, threads)
+    times: list[list[Timed]] = [[] for _ in ready]
+    for r in range(max((c.repeats for c, _, _ in ready), default=0)):
+        for k, (case, stepper, _) in enumerate(ready):
+            if r < case.repeats:
+                times[k].append(stepper.once())
+    records = [_record(case, stepper, first, t) for (case, stepper, first), t in zip(ready, times, strict=True)]
+    _pair_with_rebound(records)
+    for rec in records:
+        ratio = rec.get("rebound_over_orbitsim")
+        tail = f", REBOUND / orbitsim {ratio['wall']:.2f}" if ratio else ""
+        progress(f"{rec['id']}: {rec['steps']} steps to t = {rec['t_end']:g}, "
+                 f"{rec['per_step_s']['median'] * 1e6:.3g} us/step{tail}")
+    return records, skipped
+
+
+def run_adaptive_group(cases: list[AdaptiveCase], progress: Callable[[str], None],
+                       threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
+    """The records and skipped cases of one group's cases, one N at a time.
+
+    ``threads`` is (the default thread count for cases that name none, NUMBA_NUM_THREADS).
+    """
+    records: list[dict] = []
+    skipped: list[dict] = []
+    for n in dict.fromkeys(c.n for c in cases):
+        got, skip = _run_n([c for c in cases if c.n == n], progress, threads)
+        records += got
+        skipped += skip
+    return records, skipped
