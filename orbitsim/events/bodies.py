@@ -116,9 +116,30 @@ def check_unresolved(watch, pos, vel, m, n_done, t0, dt):
             body[i] &= ~B_UNRESOLVED
 
 
+@jit_inline
+def _bound_partner(pos, vel, m, i, G):
+    """The body ``i`` is most tightly bound to (the lowest negative two-body energy per unit of
+    reduced mass), or -1 when it is bound to none. Removed bodies (NaN) never compare lower."""
+    partner, lowest = -1, 0.0
+    for k in range(pos.shape[1]):
+        if k == i or m[i] + m[k] <= 0.0:
+            continue
+        dx, dy, dz = pos[0, i] - pos[0, k], pos[1, i] - pos[1, k], pos[2, i] - pos[2, k]
+        ux, uy, uz = vel[0, i] - vel[0, k], vel[1, i] - vel[1, k], vel[2, i] - vel[2, k]
+        energy = 0.5 * (ux * ux + uy * uy + uz * uz) - G * (m[i] + m[k]) / math.sqrt(dx * dx + dy * dy + dz * dz)
+        if energy < lowest:
+            partner, lowest = k, energy
+    return partner
+
+
 @jit
 def check_escapes(watch, pos, vel, m, n_done, t0, dt):
-    """Bodies beyond R from the centre of mass on unbound orbits relative to the rest."""
+    """Bodies beyond R from the centre of mass on unbound orbits relative to the rest.
+
+    A body bound to another (a binary member, a moon) is judged with its partner: the pair's
+    centre of mass against the rest. Judged alone, its orbital speed in the pair would swing its
+    energy above and below zero once an orbit, and a departing binary logged an escape per orbit.
+    Once escaped, a body is escaped until it is bound again (not when it is back within R)."""
     iconf, fconf, body = watch[0], watch[1], watch[4]
     G, limit = fconf[F_G], fconf[F_ESC_R]
     n = pos.shape[1]
@@ -138,20 +159,34 @@ def check_escapes(watch, pos, vel, m, n_done, t0, dt):
     for i in range(n):
         dx, dy, dz = pos[0, i] - cx, pos[1, i] - cy, pos[2, i] - cz
         d = math.sqrt(dx * dx + dy * dy + dz * dz)
-        rest = total - m[i]
         escaping = False
         speed = 0.0
         energy = 0.0
-        if d > limit and rest > 0.0:
-            # Relative to the rest's centre of mass: X_rest = (M X - m_i x_i) / (M - m_i)
-            f = total / rest
-            rx, ry, rz = f * dx, f * dy, f * dz
-            ux = f * (vel[0, i] - ux0)
-            uy = f * (vel[1, i] - uy0)
-            uz = f * (vel[2, i] - uz0)
-            speed = math.sqrt(ux * ux + uy * uy + uz * uz)
-            energy = 0.5 * speed * speed - G * total / math.sqrt(rx * rx + ry * ry + rz * rz)
-            escaping = energy > 0.0
+        # An escaped body stays escaped, inside R or not, until it is bound again: a binary member's
+        # distance swings across R once an orbit while the pair leaves.
+        if d > limit or body[i] & B_ESCAPED:
+            # The unit that leaves: the body, or the body and the partner it is bound to.
+            k = _bound_partner(pos, vel, m, i, G)
+            mu = m[i] if k < 0 else m[i] + m[k]
+            wi, wk = (1.0, 0.0) if k < 0 or mu <= 0.0 else (m[i] / mu, m[k] / mu)
+            kk = i if k < 0 else k
+            ex = wi * pos[0, i] + wk * pos[0, kk] - cx
+            ey = wi * pos[1, i] + wk * pos[1, kk] - cy
+            ez = wi * pos[2, i] + wk * pos[2, kk] - cz
+            vx = wi * vel[0, i] + wk * vel[0, kk]
+            vy = wi * vel[1, i] + wk * vel[1, kk]
+            vz = wi * vel[2, i] + wk * vel[2, kk]
+            rest = total - mu
+            if rest > 0.0:
+                # Relative to the rest's centre of mass: X_rest = (M X - mu x_unit) / (M - mu)
+                f = total / rest
+                rx, ry, rz = f * ex, f * ey, f * ez
+                ux = f * (vx - ux0)
+                uy = f * (vy - uy0)
+                uz = f * (vz - uz0)
+                speed = math.sqrt(ux * ux + uy * uy + uz * uz)
+                energy = 0.5 * speed * speed - G * total / math.sqrt(rx * rx + ry * ry + rz * rz)
+                escaping = energy > 0.0
         if not escaping:
             body[i] &= ~B_ESCAPED
             continue

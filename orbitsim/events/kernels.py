@@ -23,7 +23,8 @@ What is checked (each only when the scenario asks for it), in one pass over the 
   inside the step, tau is also taken at the pericentre of the osculating orbit, so a step that
   jumps over a pericentre is caught too. Logged once per episode, naming the lighter body.
 * **escapes**: farther than R from the centre of mass, with positive two-body energy relative to
-  the rest of the system (specific energy, so a massless body counts). Once per escape.
+  the rest of the system (specific energy, so a massless body counts); a body bound to another is
+  judged with it, as a pair. Once per escape: escaped until bound again.
 
 Events go into a buffer the Python side drains after every call (:mod:`orbitsim.events.watch`);
 ``after_step`` returns True when Python must act now: a merge or a removal to make, a halt, or a
