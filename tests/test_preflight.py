@@ -13,6 +13,7 @@ import numba
 import pytest
 from click.testing import CliRunner
 
+import orbitsim.estimate as estimate
 import orbitsim.preflight as preflight
 from orbitsim.cli.main import cli
 from orbitsim.runner import run_scenario
@@ -97,36 +98,36 @@ def test_short_runs_are_not_timed_at_all(tmp_path: Path, monkeypatch: pytest.Mon
         raise AssertionError("a short run must not be timed")
 
     monkeypatch.setattr(orbitsim.simulation, "Simulation", no_simulation)
-    assert preflight.estimate_time(load_scenario("plummer_16k")) is None  # 5 steps: it cannot matter
+    assert estimate.estimate_time(load_scenario("plummer_16k")) is None  # 5 steps: it cannot matter
     result = CliRunner().invoke(cli, ["validate", "two_body_circular", "plummer_1k"])
     assert result.exit_code == 0 and "time:" not in result.output
 
 
 def test_estimate_scales_the_subsample_by_the_pair_count(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(preflight, "_time_steps", lambda sim, sample_s: 1e-3)
-    monkeypatch.setattr(preflight, "_time_sample", lambda sim: 1e-4)
-    monkeypatch.setattr(preflight, "usable_threads", lambda threads: 2.0)
+    monkeypatch.setattr(estimate, "_time_steps", lambda sim, sample_s: 1e-3)
+    monkeypatch.setattr(estimate, "_time_sample", lambda sim: 1e-4)
+    monkeypatch.setattr(estimate, "usable_threads", lambda threads: 2.0)
     gen = {"kind": "plummer", "n": 2000, "seed": 1}
     big = scenario_from_dict({"integrator": "verlet", "dt": 1e-3, "steps": 10, "softening": 0.01,
                               "output": {"every": 5}, "generator": gen})
-    estimate = preflight.estimate_time(big, always=True)
+    measured = estimate.estimate_time(big, always=True)
     scale = 2000 * 1999 / (1000 * 999) / 2.0  # pairs, over the two usable threads (N >= 384)
-    assert estimate.n_timed == 1000 and estimate.step_s == pytest.approx(1e-3 * scale, rel=1e-12)  # round-off
-    assert estimate.total_s == pytest.approx(10 * 1e-3 * scale + 3 * 1e-4 * scale, rel=1e-12)  # round-off
-    small = preflight.estimate_time(scenario(), always=True)  # N = 2: timed whole, serial kernels
+    assert measured.n_timed == 1000 and measured.step_s == pytest.approx(1e-3 * scale, rel=1e-12)  # round-off
+    assert measured.total_s == pytest.approx(10 * 1e-3 * scale + 3 * 1e-4 * scale, rel=1e-12)  # round-off
+    small = estimate.estimate_time(scenario(), always=True)  # N = 2: timed whole, serial kernels
     assert small.n_timed == 2 and small.step_s == 1e-3
 
 
 def test_estimate_leaves_the_thread_count_as_the_run_will_find_it() -> None:
     before = numba.get_num_threads()
-    assert preflight.estimate_time(scenario(), always=True) is not None
+    assert estimate.estimate_time(scenario(), always=True) is not None
     assert numba.get_num_threads() == before
-    assert 1.0 <= preflight.usable_threads(before) <= before
+    assert 1.0 <= estimate.usable_threads(before) <= before
 
 
 def test_run_warns_before_a_long_run_and_only_then(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(preflight, "LONG_RUN_S", 0.0)  # every run counts as long here
-    monkeypatch.setattr(preflight, "ESTIMATE_MIN_WORK", 0.0)
+    monkeypatch.setattr(estimate, "LONG_RUN_S", 0.0)  # every run counts as long here
+    monkeypatch.setattr(estimate, "ESTIMATE_MIN_WORK", 0.0)
     path = write(tmp_path, BILLION.replace("1e9", "100"))
     runner = CliRunner()
     result = runner.invoke(cli, ["run", str(path), "-o", str(tmp_path / "out.h5")])
@@ -140,5 +141,5 @@ def test_run_warns_before_a_long_run_and_only_then(tmp_path: Path, monkeypatch: 
 
 
 def test_formats() -> None:
-    assert [preflight.format_seconds(s) for s in (2.0, 11160.0, 869e-6, 59.0)] == ["2 s", "3.1 h", "870 us", "59 s"]
+    assert [estimate.format_seconds(s) for s in (2.0, 11160.0, 869e-6, 59.0)] == ["2 s", "3.1 h", "870 us", "59 s"]
     assert [preflight.format_bytes(b) for b in (100, 1536, 3 * 2**40)] == ["100 B", "1.5 KiB", "3 TiB"]

@@ -264,7 +264,7 @@ class _LongRunNote:
             self.bar(done, total)
 
     def _warn_if_long(self, steps: int) -> None:
-        from orbitsim.preflight import LONG_RUN_S, estimate_time
+        from orbitsim.estimate import LONG_RUN_S, estimate_time
 
         estimate = estimate_time(self.scenario, threads=self.threads, steps=steps)
         if estimate is not None and estimate.total_s > LONG_RUN_S:

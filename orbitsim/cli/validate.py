@@ -67,7 +67,8 @@ def _preflight(scenario: object) -> int:
 
 
 def _describe(spec: str, scenario: object, size: int) -> None:
-    from orbitsim.preflight import estimate_time, format_bytes, sample_count
+    from orbitsim.estimate import estimate_time
+    from orbitsim.preflight import format_bytes, sample_count
 
     s = scenario  # a Scenario; typed loosely so this module imports nothing heavy at start-up
     length = f"t_end = {s.t_end:g} ({s.steps} steps)" if s.t_end is not None else f"{s.steps} steps"
