@@ -106,6 +106,7 @@ __all__ = [
     "SETTINGS",
     "SPEC",
     "KeplerConvergenceError",
+    "check_bodies",
     "failure_message",
     "internal_state",
     "make_work",
@@ -137,6 +138,12 @@ PHASE_SYNCED = 1
 PHASE_LAGGING = 2
 
 
+def check_bodies(m: np.ndarray) -> None:
+    """The map drifts every body about body 0: raises ValueError unless ``m[0] > 0``."""
+    if len(m) < 1 or not m[0] > 0.0:
+        raise ValueError("wisdom_holman needs a central body: the first body's mass must be > 0")
+
+
 def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
     """Build the ``work`` tuple (mapping state, scratch, constants) for masses ``m`` (N,).
 
@@ -145,8 +152,7 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
     config = validate_settings(settings)
     m = np.ascontiguousarray(m, dtype=np.float64)
     n = m.shape[0]
-    if n < 1 or not m[0] > 0.0:
-        raise ValueError("wisdom_holman needs a central body: masses[0] must be > 0")
+    check_bodies(m)
     coordinates = COORDINATE_IDS[config["coordinates"]]
     if coordinates == JACOBI:
         mu = G * np.cumsum(m)  # G M_i, M_i summed left to right

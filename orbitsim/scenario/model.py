@@ -196,6 +196,12 @@ class Scenario:
             raise ScenarioError(f"integrator settings must be a mapping, got {describe(settings)}",
                                 key="integrator")
         self._set("integrator_settings", check_settings(module, dict(settings)))
+        check_bodies = getattr(module, "check_bodies", None)  # a scheme's demands on the bodies (a central mass)
+        if check_bodies is not None:
+            try:
+                check_bodies(self.masses)
+            except ValueError as err:
+                raise ScenarioError(str(err), key="bodies") from None
 
     def _validate_time(self) -> None:
         self._set("dt", check_number(self.dt, "dt", positive=True))
