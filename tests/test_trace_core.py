@@ -4,8 +4,9 @@ Both run in this process from the same initial state (read from a ``rebound.Simu
 as REBOUND's own ``test_trace.py`` does), to the same end time with REBOUND's exact finish (whole
 steps, then one step of ``t_end - t``). The port keeps REBOUND 5.2.2's order of floating-point
 operations everywhere (non-OpenMP loop orders, no FMA), so the comparisons are bit for bit: every
-coordinate of every body ``==``, not a tolerance. The step counters are those of
-/work/trace_notes.md (section 0 and 9), measured with a reference checked against REBOUND 5.2.2.
+coordinate of every body ``==``, not a tolerance. The step counters (steps redone, BS sub-steps)
+are REBOUND 5.2.2's over the same spans, measured with an instrumented reference that reproduced it
+bit for bit.
 """
 
 from __future__ import annotations

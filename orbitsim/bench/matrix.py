@@ -12,7 +12,7 @@ A matrix is a list of *groups*; each group has a ``kind`` that says what it meas
         system: plummer           # plummer | planets | a bundled scenario name | a path
         engines: [orbitsim, rebound]
         integrators: [verlet]     # orbitsim registry names, or "all"
-        rebound_integrators: [leapfrog]   # leapfrog, leapfrog:4, leapfrog:6, leapfrog:8, whfast
+        rebound_integrators: [leapfrog]   # leapfrog, leapfrog:4, leapfrog:6, leapfrog:8, whfast, trace
         n: [256, 1024, 4096, 16384]
         rebound_n: [256, 1024, 4096]      # optional subset of n for REBOUND (it is slow at large N)
         threads: [1, 2]           # orbitsim only; REBOUND's basic gravity is serial
@@ -73,7 +73,7 @@ KINDS = ("steps", "kernels", "startup", "sampling", "memory", "adaptive")
 #: REBOUND schemes and their force evaluations per step: leapfrog of order 2k composes
 #: 1, 3, 9, 17 substeps (the tables in :mod:`orbitsim.integrators.composition`); WHFast uses one.
 REBOUND_INTEGRATORS: dict[str, int] = {
-    "leapfrog": 1, "leapfrog:4": 3, "leapfrog:6": 9, "leapfrog:8": 17, "whfast": 1,
+    "leapfrog": 1, "leapfrog:4": 3, "leapfrog:6": 9, "leapfrog:8": 17, "whfast": 1, "trace": 1,
 }
 
 _ENGINES = ("orbitsim", "rebound")

@@ -31,6 +31,7 @@ MODULE_NAMES: tuple[str, ...] = (
     "leapfrog8",
     "wisdom_holman",
     "ias15",
+    "trace",
 )
 
 

@@ -34,6 +34,7 @@ REBOUND_SCHEMES: dict[str, tuple[int | None, bool, str | None, str]] = {
     "whfast": (2, True, None, "none (coordinates and corrector follow the orbitsim settings)"),
     "saba": (2, True, "1", "type, e.g. 1, 2, 3, 4, 10_6_4"),
     "ias15": (None, False, None, "none (adaptive; epsilon = 1e-9, REBOUND's default)"),
+    "trace": (2, True, None, "none (r_crit_hill, peri_crit_eta and peri_mode follow the orbitsim settings)"),
 }
 
 #: Accepted values of ``leapfrog``'s option: the composition orders REBOUND implements.
@@ -131,7 +132,7 @@ def whfast_configurator() -> Any | None:
 def configure_scheme(sim: Any, scheme: ReboundScheme, settings: dict[str, Any] | None = None) -> None:
     """Select ``scheme`` on ``sim`` and set its options.
 
-    ``settings`` are the orbitsim integrator settings of the partner run; only WHFast reads them.
+    ``settings`` are the orbitsim integrator settings of the partner run; WHFast and TRACE read them.
     """
     if scheme.name == "whfast":
         configure = whfast_configurator()
@@ -146,6 +147,14 @@ def configure_scheme(sim: Any, scheme: ReboundScheme, settings: dict[str, Any] |
         sim.integrator.safe_mode = 1
         return
     sim.integrator = scheme.name
+    if scheme.name == "trace":
+        from orbitsim.integrators.trace import SETTINGS, validate_settings
+
+        # The orbitsim partner's settings; REBOUND's defaults for what they do not give.
+        config = validate_settings({k: v for k, v in (settings or {}).items() if k in SETTINGS})
+        sim.integrator.r_crit_hill = config["r_crit_hill"]
+        sim.integrator.peri_crit_eta = config["peri_crit_eta"]
+        sim.integrator.peri_mode = config["peri_mode"].upper()
     if scheme.name == "leapfrog":
         sim.integrator.order = int(str(scheme.option))
     elif scheme.name == "saba":

@@ -91,6 +91,9 @@ MATCHED_PAIRS: tuple[MatchedPair, ...] = (
                 "Blanes & Casas (2016) 17-stage composition, REBOUND's order-8 coefficients"),
     MatchedPair("wisdom_holman", ReboundScheme("whfast"),
                 "Wisdom-Holman map, same coordinates and corrector as REBOUND WHFast"),
+    MatchedPair("trace", ReboundScheme("trace"),
+                "TRACE in both codes: the same switching, Bulirsch-Stoer and order of operations (bit for bit "
+                "until chaotic encounters amplify round-off; the twin run measures that)"),
 )
 
 #: orbitsim's ias15 and REBOUND's IAS15: an adaptive pair, judged by ``orbitsim compare`` when ias15

@@ -1,0 +1,186 @@
+"""``trace``: the TRACE hybrid integrator in the engine (the step itself is :mod:`.trace_core`).
+
+A democratic heliocentric Wisdom-Holman map at the scenario's fixed ``dt`` that hands close
+encounters (Hill-radius criterion with look-ahead) and pericentre passages (Pham, Rein & Spiegel
+2024) to Bulirsch-Stoer, rejecting and redoing a step once when an encounter appears during it,
+so the switching is time-reversible. Outputs fall on whole steps, as for every fixed-dt scheme.
+
+Settings (REBOUND's names and defaults): ``r_crit_hill`` (3), ``peri_crit_eta`` (1) and
+``peri_mode`` (``full_bs``: a pericentre step integrates the whole system with BS;
+``partial_bs``: only the Kepler part of every body). REBOUND's third mode, ``full_ias15``, is
+refused with a clear error: it is not ported.
+
+State between steps: only ``pos``, ``vel`` and the time, which TRACE sums as ``t += dt`` (its BS
+sub-steps run on the absolute clock, so the clock's last bits matter). The clock lives in ``work``
+(:data:`W_CLOCK`: the time and the step count it belongs to), so a checkpoint restores it and a
+resumed run continues bit for bit.
+
+Massless bodies are test particles (REBOUND's ``testparticle_type = 0``) and must come after every
+massive body.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from orbitsim._jit import jit
+from orbitsim.events.kernels import watched_run
+from orbitsim.integrators import trace_core
+from orbitsim.integrators.base import IntegratorSpec, record_sample
+from orbitsim.integrators.trace_core import PERI_MODES, ST_STATUS, STATUS_OK, W_BOOK, _trace_step, active_count
+
+__all__ = ["SETTINGS", "SPEC", "carry_over", "check_bodies", "counters", "failure_message", "make_work", "run",
+           "run_watched", "step", "validate_settings"]
+
+SPEC = IntegratorSpec(
+    name="trace",
+    aliases=("hybrid",),
+    order=2,
+    symplectic=False,  # symplectic between switches; the switching itself is time-reversible, not symplectic
+    reversible=False,  # reversible in exact arithmetic only where no BS step and no redo intervene
+    force_evals=1,
+    work_slots=0,
+    fsal=False,
+    summary="TRACE hybrid: democratic heliocentric Wisdom-Holman map, close encounters and pericentre passages "
+    "by Bulirsch-Stoer with time-reversible switching (REBOUND's TRACE, bit for bit)",
+    reference="Lu, Hernandez & Rein (2024), MNRAS 533, 3708; Pham, Rein & Spiegel (2024), OJAp 7, 1; "
+    "Duncan, Levison & Lee (1998), AJ 116, 2067",
+    module=__name__,
+)
+
+#: Settings a scenario may give (``integrator: {name: trace, r_crit_hill: 4}``), with REBOUND's defaults.
+SETTINGS: dict[str, Any] = {"r_crit_hill": 3.0, "peri_crit_eta": 1.0, "peri_mode": "full_bs"}
+
+#: Extra ``work`` entries after :func:`.trace_core.make_work`'s: the clock (t, step of t) and the
+#: settings as numbers (r_crit_hill, peri_crit_eta) and codes (peri_mode, number of massive bodies).
+W_CLOCK, W_REAL, W_INT = 10, 11, 12
+
+
+def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Check ``r_crit_hill`` (> 0), ``peri_crit_eta`` (>= 0) and ``peri_mode``; fill in defaults.
+
+    A ``name`` key (the integrator name in the scenario mapping) is ignored. Raises ValueError
+    naming the key.
+    """
+    given = {k: v for k, v in dict(settings or {}).items() if k != "name"}
+    unknown = sorted(set(given) - set(SETTINGS))
+    if unknown:
+        raise ValueError(f"'{unknown[0]}' is not a trace setting (settings: {', '.join(SETTINGS)})")
+    config = {**SETTINGS, **given}
+    for key, lowest, strict in (("r_crit_hill", 0.0, True), ("peri_crit_eta", 0.0, False)):
+        value = config[key]
+        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value) \
+                or (value <= lowest if strict else value < lowest):
+            raise ValueError(f"'{key}' must be a finite number {'>' if strict else '>='} 0, got {value!r}")
+        config[key] = float(value)
+    mode = str(config["peri_mode"]).strip().lower()
+    if mode == "full_ias15":
+        raise ValueError("'peri_mode' full_ias15 is not available in orbitsim's trace yet; use full_bs (REBOUND's "
+                         "default) or partial_bs")
+    if mode not in PERI_MODES:
+        raise ValueError(f"'peri_mode' must be one of {', '.join(PERI_MODES)}, got {config['peri_mode']!r}")
+    config["peri_mode"] = mode
+    return config
+
+
+def check_bodies(m: np.ndarray) -> None:
+    """A central body with mass first, and massless bodies (test particles) after every massive
+    one; raises ValueError saying which rule the masses break."""
+    active_count(np.ascontiguousarray(m, dtype=np.float64))
+
+
+def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
+    """The step's scratch (:func:`.trace_core.make_work`), the clock and the settings.
+
+    Raises ValueError for invalid settings, a central body without mass, or a massless body
+    before a massive one.
+    """
+    config = validate_settings(settings)
+    masses = np.ascontiguousarray(m, dtype=np.float64)
+    n_active = active_count(masses)
+    clock = np.array([np.nan, -1.0])  # unset: the first call starts it at t0 + n dt
+    real = np.array([config["r_crit_hill"], config["peri_crit_eta"]])
+    codes = np.array([PERI_MODES[config["peri_mode"]], n_active], dtype=np.int64)
+    return (*trace_core.make_work(masses.shape[0]), clock, real, codes)
+
+
+def carry_over(old: tuple[Any, ...], new: tuple[Any, ...]) -> None:
+    """After the bodies changed (a merge, a removal): keep the clock and the counters."""
+    new[W_CLOCK][:] = old[W_CLOCK]
+    new[W_BOOK][:] = old[W_BOOK]
+
+
+def counters(work: tuple[Any, ...]) -> dict[str, int]:
+    """Steps, steps redone, encounter and FULL_BS sub-steps (written to the trace's attributes)."""
+    return trace_core.counts_of(work)
+
+
+def failure_message(work: tuple[Any, ...]) -> str | None:
+    """Why the run stopped, when TRACE knows."""
+    if int(work[W_BOOK][ST_STATUS]) == STATUS_OK:
+        return None
+    return ("trace: a Bulirsch-Stoer sub-step of a close encounter produced nan (bodies closer than the encounter "
+            "integrator can follow; a collision with radii would merge them)")
+
+
+@jit
+def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to`` on TRACE's summed clock; returns the steps reached."""
+    _set_clock(work, t0, n_done, dt)  # first call, or a run that continues elsewhere: the clock of step n_done
+    clock = work[W_CLOCK]
+    real, codes = work[W_REAL], work[W_INT]
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book = work[:10]
+    while n_done < n_to:
+        _trace_step(pos, vel, m, force[0], dt, clock[0], real[0], real[1], codes[0], codes[1], force[1], frames,
+                    acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book)
+        clock[0] += dt
+        n_done += 1
+        clock[1] = n_done
+        if book[ST_STATUS] != STATUS_OK:
+            break
+    return n_done
+
+
+@jit
+def _set_clock(work, t0, n_done, dt):
+    clock = work[W_CLOCK]
+    if clock[1] != n_done:
+        clock[0] = t0 + n_done * dt
+        clock[1] = n_done
+
+
+@jit
+def step(pos, vel, acc, m, force, dt, work):
+    """One step from the clock's time (t = 0 on a fresh ``work``), ``pos``/``vel`` in and out
+    (``acc`` is not used)."""
+    clock = work[W_CLOCK]
+    if clock[1] < 0:
+        _set_clock(work, 0.0, 0, dt)
+    n = int(clock[1])
+    _advance(pos, vel, m, force, dt, work, 0.0, n, n + 1)
+
+
+@jit
+def run(state, force, dt, work, t0, n_done, targets, record, out):
+    """Fixed-dt loop (contract in :mod:`orbitsim.integrators.base`)."""
+    pos, vel, _acc, m = state
+    written = 0
+    for k in range(targets.shape[0]):
+        n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, targets[k])
+        if work[W_BOOK][ST_STATUS] != STATUS_OK:
+            return written, n_done, False
+        if record[k]:
+            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+                return written, n_done, False
+            written += 1
+    return written, n_done, True
+
+
+@jit
+def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    _set_clock(work, t0, n_done, dt)
+    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
