@@ -119,3 +119,13 @@ def test_chaotic_exchange_keeps_the_jacobi_constant(tmp_path: Path) -> None:
     c0, c1 = jacobi_constant(x[0], v[0], m), jacobi_constant(x[-1], v[-1], m)
     assert abs((c1 - c0) / c0) < 1e-6
     assert redone > 0  # the particle did meet Jupiter
+
+
+def test_the_run_line_says_how_often_trace_switched(tmp_path: Path) -> None:
+    result = CliRunner().invoke(cli, ["run", "many_encounters", "--steps", "3000", "-o", str(tmp_path / "m.h5")],
+                                catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    line = result.stdout.splitlines()[0]
+    assert "(trace: " in line and " steps redone, " in line and "Bulirsch-Stoer sub-steps)" in line
+    with h5py.File(tmp_path / "m.h5", "r") as f:
+        assert f"{int(f.attrs['trace_redone']):,} steps redone" in line

@@ -202,6 +202,9 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
             done = (f"{summary.steps_done} of {summary.steps_requested} output intervals in {summary.wall_time_s:.3g}"
                     f" s ({scenario.integrator}: {own['steps_accepted']:,} steps, {own['steps_rejected']:,} rejected,"
                     f" {rate})")
+        if own is not None and "redone" in own:  # a hybrid's encounters: how often it switched and redid a step
+            done += (f" ({scenario.integrator}: {own['redone']:,} steps redone, "
+                     f"{own['encounter_bs_substeps'] + own['full_bs_substeps']:,} Bulirsch-Stoer sub-steps)")
         click.echo(f"{summary.name}: {summary.status}, {done}, max |dE/E| = {summary.max_abs_energy_error:.3g}, "
                    f"{summary.samples} samples to {end} -> {summary.output}")
     if not quiet and summary.events:
