@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.trace_forces import derivatives
 
 #: REBOUND's defaults inside TRACE (not user-settable there either).
@@ -85,13 +85,13 @@ BS_INT_LENGTH = 3
 BS_REJECTED, BS_ACCEPTED, BS_NAN = 0, 1, -1
 
 
-@jit
+@jit_inline
 def _cmax(a, b):
     """C's ``MAX(a, b)`` macro (``a > b ? a : b``): differs from max() when b is nan."""
     return a if a > b else b
 
 
-@jit
+@jit_inline
 def _cmin(a, b):
     """C's ``MIN(a, b)`` macro (``a < b ? a : b``)."""
     return a if a < b else b

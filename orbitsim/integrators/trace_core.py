@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.trace_bs import (
     BS_ACCEPTED,
     BS_DT_PROPOSED,
@@ -239,24 +239,28 @@ def _full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_rea
     inertial_to_dh(pos, vel, m, n_active, com)
 
 
-@jit
+@jit_inline
 def _trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening2, frames, acc,
                 com, rows, bs_real, bs_int, prev_x, interacts, enc, book):
     """:func:`trace_step` on the unpacked work arrays.
 
     The try and the redo (REBOUND's ``step_try``) are one loop here rather than a function: a
-    call with these 13 arrays cost more than the operators of a step without encounters.
+    call with these 13 arrays cost more than the operators of a step without encounters. For the
+    same reason this step, and the operators and checks it calls, are inlined into the run loops.
     """
     inertial_to_dh(pos, vel, m, n_active, com)
     save_state(pos, vel, frames, F_BACKUP_POS)
     book[ST_FORCE_ACCEPT] = 0
-    pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book)
+    hill6 = acc[0]  # scratch of the checks: free there, as the kick overwrites acc before it reads it
+    pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book,
+                   hill6)
     for attempt in range(2):
         if attempt == 1:
             # Redo once, from the start, with the union of the flags if the end state added any;
             # never after a collision (ST_FORCE_ACCEPT), which cannot be undone.
             if book[ST_STATUS] != STATUS_OK or book[ST_FORCE_ACCEPT] or not post_step_check(
-                    pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book):
+                    pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book,
+                    hill6):
                 break
             book[C_REDONE] += 1
             restore_state(pos, vel, frames, F_BACKUP_POS)
@@ -271,8 +275,9 @@ def _trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_
         if not current_c:  # a PARTIAL_BS pericentre step moves the jump into the BS equations
             jump(pos, vel, m, n_active, half)
         # Kepler drift of every body about the star; the encounter set is then redone with BS
-        # from the state before the drift.
-        save_state(pos, vel, frames, F_KEPLER_POS)
+        # from the state before the drift (saved only when there is one: nothing else reads it).
+        if book[ST_ENC_N] >= 2:
+            save_state(pos, vel, frames, F_KEPLER_POS)
         mu = G * m[0]
         for i in range(1, pos.shape[1]):
             (pos[0, i], pos[1, i], pos[2, i], vel[0, i], vel[1, i], vel[2, i]) = kepler_drift(

@@ -31,14 +31,14 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit_inline
 
 #: ODE kinds dispatched by :func:`derivatives` (an integer switch keeps the BS kernel cacheable).
 ODE_NEWTON = 0
 ODE_ENCOUNTER = 1
 
 
-@jit
+@jit_inline
 def interaction_kick(pos, vel, m, G, softening2, n_active, interacts, acc, h):
     """Kick the barycentric velocities of bodies 1..N-1 by h times the unflagged pair forces.
 
@@ -118,7 +118,7 @@ def _add_pair(rows, src, dst, k, l, G, softening2, m_k, m_l, both, ghost_shift):
         rows[dst, 6 * l + 5] += prefact_k * dz
 
 
-@jit
+@jit_inline
 def encounter_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_bodies_active, interacts,
                           with_jump):
     """dy/dt of TRACE's encounter ODE at ``rows[src]`` into ``rows[dst]`` (first 6 n_bodies entries).
@@ -166,7 +166,7 @@ def encounter_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_
         rows[dst, 6 * k + 2] = rows[src, 6 * k + 5] + pz
 
 
-@jit
+@jit_inline
 def newton_derivatives(rows, src, dst, m, G, softening2, n_bodies, n_active):
     """dy/dt of the inertial Newtonian N-body ODE of all bodies at ``rows[src]`` into ``rows[dst]``."""
     for k in range(n_bodies):

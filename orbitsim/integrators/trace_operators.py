@@ -15,10 +15,10 @@ REBOUND does; nothing here is compensated.
 
 from __future__ import annotations
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit_inline
 
 
-@jit
+@jit_inline
 def inertial_to_dh(pos, vel, m, n_active, com):
     """Inertial -> democratic heliocentric, in place; ``com`` (6,) gets the centre of mass.
 
@@ -45,7 +45,7 @@ def inertial_to_dh(pos, vel, m, n_active, com):
             vel[c, i] -= com[3 + c]
 
 
-@jit
+@jit_inline
 def dh_to_inertial(pos, vel, m, n_active, com):
     """Democratic heliocentric -> inertial, in place, about the centre of mass ``com``.
 
@@ -71,7 +71,7 @@ def dh_to_inertial(pos, vel, m, n_active, com):
         vel[c, 0] = com[3 + c] - sum_v / m[0]
 
 
-@jit
+@jit_inline
 def jump(pos, vel, m, n_active, h):
     """The jump ``x_i += h P / m0``, ``P = sum_{1 <= i < n_active} m_i v_i``, for every body i >= 1."""
     n = pos.shape[1]
@@ -85,7 +85,7 @@ def jump(pos, vel, m, n_active, h):
             pos[c, i] += p
 
 
-@jit
+@jit_inline
 def save_state(pos, vel, frames, plane):
     """Copy the state into ``frames[plane]`` (positions) and ``frames[plane + 1]`` (velocities)."""
     for c in range(3):
@@ -94,7 +94,7 @@ def save_state(pos, vel, frames, plane):
             frames[plane + 1, c, i] = vel[c, i]
 
 
-@jit
+@jit_inline
 def restore_state(pos, vel, frames, plane):
     """Copy ``frames[plane]``, ``frames[plane + 1]`` back into the state."""
     for c in range(3):

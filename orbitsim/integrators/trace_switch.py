@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit_inline
 
 #: ``peri_mode`` ids (REBOUND's ``REB_INTEGRATOR_TRACE_PERIMODE_*``).
 PARTIAL_BS = 0
@@ -41,9 +41,24 @@ STATE_LENGTH = 6
 
 
 @jit_inline
-def pair_flagged(xi, yi, zi, xj, yj, zj, dvx, dvy, dvz, m_i, m_j, m0, h2, r_crit_hill):
+def hill_radius6(x, y, z, m_i, m0):
+    """Sixth power of the modified Hill radius ``|x| (m_i / 3 m0)^(1/3)`` (0 for a test particle).
+
+    Per body, not per pair: :func:`_flag_pairs` keeps these in a scratch row, which leaves the
+    bits as they were (the same operations on the same values) and saves two divisions per pair.
+    """
+    if m_i == 0.0:
+        return 0.0
+    d2 = x * x + y * y + z * z
+    mr = m_i / (3.0 * m0)
+    return d2 * d2 * d2 * mr * mr
+
+
+@jit_inline
+def pair_flagged(xi, yi, zi, xj, yj, zj, dvx, dvy, dvz, dcrit_max6, h2):
     """Whether bodies i and j (heliocentric x, relative velocity dv = v_i - v_j) come within
-    r_crit_hill Hill radii within h2 (= dt/2) of now.
+    ``dcrit_max6^(1/6)`` (r_crit_hill times the larger :func:`hill_radius6`) within h2 (= dt/2)
+    of now.
 
     Scalar arguments only: a jitted function that takes arrays pays a reference-count round trip
     per array and call, which doubled the cost of this check (measured).
@@ -52,20 +67,6 @@ def pair_flagged(xi, yi, zi, xj, yj, zj, dvx, dvy, dvz, m_i, m_j, m0, h2, r_crit
     dy = yi - yj
     dz = zi - zj
     rp = dx * dx + dy * dy + dz * dz
-    # Sixth powers of the Hill radii; the star (at the origin) gets 0. REBOUND gives it its physical
-    # radius instead when that is set, for collisions: no radii here (collision hook, trace_core).
-    dcrit_i6 = 0.0
-    dcrit_j6 = 0.0
-    if m_i != 0.0:
-        di2 = xi * xi + yi * yi + zi * zi
-        mr = m_i / (3.0 * m0)
-        dcrit_i6 = di2 * di2 * di2 * mr * mr
-    if m_j != 0.0:
-        dj2 = xj * xj + yj * yj + zj * zj
-        mr = m_j / (3.0 * m0)
-        dcrit_j6 = dj2 * dj2 * dj2 * mr * mr
-    rc2 = r_crit_hill * r_crit_hill
-    dcrit_max6 = rc2 * rc2 * rc2 * (dcrit_i6 if dcrit_i6 > dcrit_j6 else dcrit_j6)
     if rp * rp * rp < dcrit_max6:
         return True
     v2 = dvx * dvx + dvy * dvy + dvz * dvz
@@ -120,7 +121,7 @@ def pericentre_flagged(x, y, z, dx, dy, dz, G_m0, dt, peri_crit_eta):
     return dt * dt > peri_crit_eta * peri_crit_eta * tau_prs2
 
 
-@jit
+@jit_inline
 def _first_pericentre(pos, vel, m, G, dt, n_active, peri_crit_eta):
     """Whether any active body 1..n_active-1 is near pericentre (stops at the first)."""
     G_m0 = G * m[0]
@@ -131,18 +132,25 @@ def _first_pericentre(pos, vel, m, G, dt, n_active, peri_crit_eta):
     return False
 
 
-@jit
-def _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state):
+@jit_inline
+def _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6):
     """Flag every pair (i < n_active, j > i) in an encounter; add both to the set; True if any
-    flag was not already set."""
+    flag was not already set. ``hill6`` (N,): scratch for the bodies' :func:`hill_radius6`."""
     n = pos.shape[1]
     h2 = dt / 2.0
+    m0 = m[0]
+    for i in range(n):
+        # The star (at the origin) gets 0. REBOUND gives it its physical radius instead when
+        # that is set, for collisions: no radii here (collision hook, trace_core).
+        hill6[i] = hill_radius6(pos[0, i], pos[1, i], pos[2, i], m[i], m0)
+    rc2 = r_crit_hill * r_crit_hill
+    rc6 = rc2 * rc2 * rc2  # REBOUND's rc2 * rc2 * rc2 * max: the same left-to-right products
     new = False
     for i in range(n_active):
         for j in range(i + 1, n):
+            dcrit_max6 = rc6 * (hill6[i] if hill6[i] > hill6[j] else hill6[j])
             if pair_flagged(pos[0, i], pos[1, i], pos[2, i], pos[0, j], pos[1, j], pos[2, j],
-                            vel[0, i] - vel[0, j], vel[1, i] - vel[1, j], vel[2, i] - vel[2, j],
-                            m[i], m[j], m[0], h2, r_crit_hill):
+                            vel[0, i] - vel[0, j], vel[1, i] - vel[1, j], vel[2, i] - vel[2, j], dcrit_max6, h2):
                 if not interacts[i, j]:
                     new = True
                 interacts[i, j] = 1
@@ -157,19 +165,24 @@ def _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state):
     return new
 
 
-@jit
+@jit_inline
 def pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc,
-                   state):
-    """Set the encounter flags at the start of a step (REBOUND ``pre_ts_check``)."""
+                   state, hill6):
+    """Set the encounter flags at the start of a step (REBOUND ``pre_ts_check``); ``hill6`` (N,)
+    is scratch."""
     n = pos.shape[1]
+    # A pair flag is only ever set together with its bodies' encounter flags, which raises
+    # ST_ENC_N above 1 for the rest of that step: after a step that ended with ST_ENC_N == 1 the
+    # flags are all clear already, and the O(N^2) clear is skipped.
+    if state[ST_ENC_N] != 1:
+        for i in range(n):
+            for j in range(i + 1, n):
+                interacts[i, j] = 0
     for i in range(1, n):
         enc[0, i] = 0
     enc[0, 0] = 1
     state[ST_ENC_N] = 1
     state[ST_CURRENT_C] = 0
-    for i in range(n):
-        for j in range(i + 1, n):
-            interacts[i, j] = 0
     state[ST_TPONLY] = 1
     if _first_pericentre(pos, vel, m, G, dt, n_active, peri_crit_eta):
         state[ST_CURRENT_C] = 1
@@ -181,14 +194,14 @@ def pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, per
         state[ST_ENC_N] = n
         for i in range(1, n):
             enc[0, i] = 1
-    _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state)
+    _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6)
     for i in range(n):
         enc[1, i] = enc[0, i]
 
 
-@jit
+@jit_inline
 def post_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc,
-                    state):
+                    state, hill6):
     """Add the flags of the end-of-step state; True if any is new, i.e. the step must be redone.
 
     ``ST_ENC_N`` keeps the pre-step count (REBOUND does not reset it), and bodies are added to it.
@@ -209,6 +222,6 @@ def post_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, pe
         state[ST_ENC_N] = n
         for i in range(n):
             enc[0, i] = 1
-    if _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state):
+    if _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6):
         new = True
     return new
