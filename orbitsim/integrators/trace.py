@@ -123,7 +123,7 @@ def failure_message(work: tuple[Any, ...]) -> str | None:
     if int(work[W_BOOK][ST_STATUS]) == STATUS_OK:
         return None
     return ("trace: a Bulirsch-Stoer sub-step of a close encounter produced nan (bodies closer than the encounter "
-            "integrator can follow; a collision with radii would merge them)")
+            "integrator can follow; trace does not yet detect collisions inside an encounter)")
 
 
 @jit
@@ -156,10 +156,7 @@ def _set_clock(work, t0, n_done, dt):
 def step(pos, vel, acc, m, force, dt, work):
     """One step from the clock's time (t = 0 on a fresh ``work``), ``pos``/``vel`` in and out
     (``acc`` is not used)."""
-    clock = work[W_CLOCK]
-    if clock[1] < 0:
-        _set_clock(work, 0.0, 0, dt)
-    n = int(clock[1])
+    n = max(int(work[W_CLOCK][1]), 0)  # an unset clock (-1) is started at t = 0 by _advance
     _advance(pos, vel, m, force, dt, work, 0.0, n, n + 1)
 
 
