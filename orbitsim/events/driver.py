@@ -101,6 +101,14 @@ class Watcher:
         events, self.watch = drain(self.watch, self.alive)
         stop = int(self.watch[9][wl.STOP]) if acted else wl.STOP_NONE
         self.watch[9][wl.STOP] = wl.STOP_NONE
+        if stop == wl.STOP_RESOLVE and hasattr(sim.module, "take_merges"):
+            merged = self._take_in_step_merges(sim)
+            if merged:
+                # The step's own checks were left for now: they run on the bodies that are left.
+                self.log.extend(events)
+                self.log.extend(merged)
+                stop = self._check_step(sim)
+                events, self.watch = drain(self.watch, self.alive)
         if stop == wl.STOP_HALT:
             self._halt(events, sim.steps_done)
         elif stop == wl.STOP_RESOLVE:
@@ -151,9 +159,51 @@ class Watcher:
             self._take_out(sim, gone, into, m, pos, vel, radii, step, time)
         return events
 
+    def _take_in_step_merges(self, sim: Simulation) -> list[Event]:
+        """Take out the bodies the integrator merged inside the last step (TRACE's encounters,
+        :func:`orbitsim.integrators.trace.take_merges`); return their events.
+
+        The integrator has merged them already, each into the lower index, leaving a massless
+        husk, and measured the energy each merge took out at the moment it happened.
+        """
+        rows, radii = sim.module.take_merges(sim.work)
+        if len(rows) == 0:
+            return []
+        from orbitsim.integrators.trace_collide import H_DIST, H_ENERGY, H_KEEP, H_LOSE, H_REACH, H_SPEED, H_TIME
+
+        step = sim.steps_done
+        gone = np.zeros(len(sim.m), dtype=bool)
+        into = np.arange(len(sim.m))
+        for row in rows:
+            keep, lose = int(row[H_KEEP]), int(row[H_LOSE])
+            gone[lose], into[lose] = True, keep
+            self.offset += float(row[H_ENERGY])
+        # A body that merged and was then merged into another ended in the last one.
+        events = [Event("collision", step, step, float(row[H_TIME]), int(self.alive[int(row[H_KEEP])]),
+                        int(self.alive[int(row[H_LOSE])]), float(row[H_DIST]), float(row[H_SPEED]),
+                        float(row[H_REACH]), outcome="merged", into=int(self.alive[_root(into, int(row[H_KEEP]))]))
+                  for row in rows]
+        events.extend(open_encounters(self.watch, self.alive, involving=gone))
+        self._take_out(sim, gone, into, sim.m.copy(), sim.pos.copy(), sim.vel.copy(), radii, step, sim.time,
+                       husks=True)
+        return events
+
+    def _check_step(self, sim: Simulation) -> int:
+        """The end-of-step checks of the last step, on the bodies left after its merges; the
+        stop code they ask for."""
+        from orbitsim.events.kernels import after_step
+
+        self.watch[9][wl.STOP] = wl.STOP_NONE
+        after_step(self.watch, sim.pos, sim.vel, sim.m, sim.steps_done, sim.t0, sim.dt)
+        stop = int(self.watch[9][wl.STOP])
+        self.watch[9][wl.STOP] = wl.STOP_NONE
+        return stop
+
     def _take_out(self, sim: Simulation, gone: np.ndarray, into: np.ndarray, m: np.ndarray, pos: np.ndarray,
-                  vel: np.ndarray, radii: np.ndarray, step: int, time: float) -> None:
-        before = sim.total_energy()
+                  vel: np.ndarray, radii: np.ndarray, step: int, time: float, husks: bool = False) -> None:
+        """Remove the bodies ``gone``; unless they are ``husks`` (massless leftovers of merges the
+        integrator made and accounted for), the energy their removal changes goes to the offset."""
+        before = 0.0 if husks else sim.total_energy()
         keep = np.flatnonzero(~gone)
         for k in np.flatnonzero(gone):
             orig = int(self.alive[k])
@@ -166,7 +216,8 @@ class Watcher:
         self.watch = shrink_watch(self.watch, keep, radii[keep], m[keep])
         self.alive, self.radii = self.alive[keep], radii[keep]
         sim.replace_bodies(m[keep], pos[:, keep], vel[:, keep])
-        self.offset += before - sim.total_energy()
+        if not husks:
+            self.offset += before - sim.total_energy()
 
     def outcome(self, final_run: bool = True) -> RunEvents:
         """The run's events and the bodies' fates. At the end of a run (``final_run``) the

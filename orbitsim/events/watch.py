@@ -116,8 +116,8 @@ def shrink_watch(watch: tuple[np.ndarray, ...], keep: np.ndarray, radii: np.ndar
                  masses: np.ndarray) -> tuple[np.ndarray, ...]:
     """The watch of the bodies ``keep`` (current indices, increasing) with their new ``radii`` and
     ``masses``: episodes of removed bodies are dropped (the caller logs them first), the others
-    renumbered."""
-    iconf, fconf, _, _, body, pair_i, pair_f, ev_i, ev_f, counts, _, _, _ = watch
+    renumbered; the start-of-step states of the bodies kept are kept."""
+    iconf, fconf, _, prev, body, pair_i, pair_f, ev_i, ev_f, counts, _, _, _ = watch
     n_old, n = int(body.shape[0]), int(keep.shape[0])
     new_index = np.full(n_old, -1, dtype=np.int64)
     new_index[keep] = np.arange(n)
@@ -133,7 +133,8 @@ def shrink_watch(watch: tuple[np.ndarray, ...], keep: np.ndarray, radii: np.ndar
     new_counts[wl.N_PAIRS] = len(rows)
     new_iconf = iconf.copy()
     new_iconf[wl.C_CENTRAL] = int(np.argmax(masses)) if n else 0
-    return (new_iconf, fconf.copy(), np.array(radii, dtype=np.float64), np.zeros((2, 3, n)), body[keep].copy(),
+    # The start-of-step states go along: checks can then run on the step that just ended.
+    return (new_iconf, fconf.copy(), np.array(radii, dtype=np.float64), prev[:, :, keep].copy(), body[keep].copy(),
             new_pair_i, new_pair_f, ev_i, ev_f, new_counts, np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros((2, n)))
 
 

@@ -17,6 +17,10 @@ resumed run continues bit for bit.
 
 Massless bodies are test particles (REBOUND's ``testparticle_type = 0``) and must come after every
 massive body.
+
+Collisions (``events.collisions``): :func:`run_watched` arms the step's contact search inside the
+Bulirsch-Stoer sub-steps (:mod:`.trace_collide`); the merges it makes are taken out by
+:mod:`orbitsim.events.driver` through :func:`take_merges`.
 """
 
 from __future__ import annotations
@@ -27,13 +31,17 @@ from typing import Any
 import numpy as np
 
 from orbitsim._jit import jit
-from orbitsim.events.kernels import watched_run
+from orbitsim.events.kernels import after_step, remember_start
 from orbitsim.integrators import trace_core
 from orbitsim.integrators.base import IntegratorSpec, record_sample
-from orbitsim.integrators.trace_core import PERI_MODES, ST_STATUS, STATUS_OK, W_BOOK, _trace_step, active_count
+from orbitsim.integrators.trace_collide import H_MERGED, K_HITS, K_LOST
+from orbitsim.integrators.trace_contacts import arm_collisions, post_contacts
+from orbitsim.integrators.trace_core import PERI_MODES, _trace_step, active_count
+from orbitsim.integrators.trace_layout import N_SLOTS, STATUS_OK, W_BOOK, W_COLLIDE, W_HITS, W_RADII
+from orbitsim.integrators.trace_switch import ST_STATUS
 
 __all__ = ["SETTINGS", "SPEC", "carry_over", "check_bodies", "counters", "failure_message", "make_work", "run",
-           "run_watched", "step", "validate_settings"]
+           "run_watched", "step", "take_merges", "validate_settings"]
 
 SPEC = IntegratorSpec(
     name="trace",
@@ -56,7 +64,7 @@ SETTINGS: dict[str, Any] = {"r_crit_hill": 3.0, "peri_crit_eta": 1.0, "peri_mode
 
 #: Extra ``work`` entries after :func:`.trace_core.make_work`'s: the clock (t, step of t) and the
 #: settings as numbers (r_crit_hill, peri_crit_eta) and codes (peri_mode, number of massive bodies).
-W_CLOCK, W_REAL, W_INT = 10, 11, 12
+W_CLOCK, W_REAL, W_INT = N_SLOTS, N_SLOTS + 1, N_SLOTS + 2
 
 
 def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -122,8 +130,26 @@ def failure_message(work: tuple[Any, ...]) -> str | None:
     """Why the run stopped, when TRACE knows."""
     if int(work[W_BOOK][ST_STATUS]) == STATUS_OK:
         return None
-    return ("trace: a Bulirsch-Stoer sub-step of a close encounter produced nan (bodies closer than the encounter "
-            "integrator can follow; trace does not yet detect collisions inside an encounter)")
+    return ("trace: a Bulirsch-Stoer sub-step of a close encounter produced nan (two bodies came closer than the "
+            "encounter integrator can follow; give the bodies radii and an events: collisions section to merge or "
+            "halt them at contact)")
+
+
+def take_merges(work: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """The merges TRACE made inside the last step (rows of
+    :data:`~.trace_collide.HIT_COLUMNS`) and the radii after them; the table is emptied.
+
+    A body that merged away is still in the arrays, as a massless husk with radius 0, until the
+    caller takes it out (:mod:`orbitsim.events.driver`).
+    """
+    collide, hits = work[W_COLLIDE], work[W_HITS]
+    rows = hits[: min(int(collide[K_HITS]), hits.shape[0])].copy()
+    lost = int(collide[K_LOST])
+    collide[K_HITS] = 0
+    collide[K_LOST] = 0
+    if lost:
+        raise RuntimeError(f"trace: {lost} merges inside one step did not fit the contact table")
+    return rows[rows[:, H_MERGED] != 0.0], work[W_RADII].copy()
 
 
 @jit
@@ -132,10 +158,10 @@ def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
     _set_clock(work, t0, n_done, dt)  # first call, or a run that continues elsewhere: the clock of step n_done
     clock = work[W_CLOCK]
     real, codes = work[W_REAL], work[W_INT]
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book = work[:10]
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work[:N_SLOTS]
     while n_done < n_to:
         _trace_step(pos, vel, m, force[0], dt, clock[0], real[0], real[1], codes[0], codes[1], force[1], frames,
-                    acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book)
+                    acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide)
         clock[0] += dt
         n_done += 1
         clock[1] = n_done
@@ -178,6 +204,30 @@ def run(state, force, dt, work, t0, n_done, targets, record, out):
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`).
+
+    TRACE also searches its Bulirsch-Stoer sub-steps for contacts (:mod:`.trace_collide`) when
+    the scenario detects collisions. A step with such a contact that merges or halts returns
+    to Python at once, without the end-of-step checks: Python takes the merged bodies out first
+    and runs those checks on what is left (:mod:`orbitsim.events.driver`).
+    """
     _set_clock(work, t0, n_done, dt)
-    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    arm_collisions(work[W_RADII], work[W_COLLIDE], watch)
+    pos, vel, acc, m = state
+    written = 0
+    for k in range(targets.shape[0]):
+        while n_done < targets[k]:
+            remember_start(watch, pos, vel)
+            step(pos, vel, acc, m, force, dt, work)
+            n_done += 1
+            if work[W_BOOK][ST_STATUS] != STATUS_OK:
+                return written, n_done, False, False
+            if post_contacts(watch, work[W_HITS], work[W_COLLIDE], n_done):
+                return written, n_done, True, True
+            if after_step(watch, pos, vel, m, n_done, t0, dt):
+                return written, n_done, True, True
+        if record[k]:
+            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+                return written, n_done, False, False
+            written += 1
+    return written, n_done, True, False

@@ -167,18 +167,19 @@ def encounter_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_
 
 
 @jit_inline
-def newton_derivatives(rows, src, dst, m, G, softening2, n_bodies, n_active):
-    """dy/dt of the inertial Newtonian N-body ODE of all bodies at ``rows[src]`` into ``rows[dst]``."""
+def newton_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_active):
+    """dy/dt of the inertial Newtonian N-body ODE at ``rows[src]`` into ``rows[dst]``; ODE body k is
+    particle ``bodies[k]`` (all bodies in order, less those a collision merged away)."""
     for k in range(n_bodies):
         for c in range(3):
             rows[dst, 6 * k + c] = rows[src, 6 * k + 3 + c]
             rows[dst, 6 * k + 3 + c] = 0.0
     for k in range(1, n_active):
         for l in range(k):
-            _add_pair(rows, src, dst, k, l, G, softening2, m[k], m[l], True, True)
+            _add_pair(rows, src, dst, k, l, G, softening2, m[bodies[k]], m[bodies[l]], True, True)
     for k in range(max(n_active, 1), n_bodies):
         for l in range(n_active):
-            _add_pair(rows, src, dst, k, l, G, softening2, m[k], m[l], False, True)
+            _add_pair(rows, src, dst, k, l, G, softening2, m[bodies[k]], m[bodies[l]], False, True)
 
 
 @jit_inline
@@ -189,4 +190,4 @@ def derivatives(kind, rows, src, dst, m, G, softening2, bodies, n_bodies, n_bodi
         encounter_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_bodies_active, interacts,
                               with_jump)
     else:
-        newton_derivatives(rows, src, dst, m, G, softening2, n_bodies, n_bodies_active)
+        newton_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_bodies_active)

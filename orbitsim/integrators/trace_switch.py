@@ -133,16 +133,19 @@ def _first_pericentre(pos, vel, m, G, dt, n_active, peri_crit_eta):
 
 
 @jit_inline
-def _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6):
+def _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6, star_radius):
     """Flag every pair (i < n_active, j > i) in an encounter; add both to the set; True if any
-    flag was not already set. ``hill6`` (N,): scratch for the bodies' :func:`hill_radius6`."""
+    flag was not already set. ``hill6`` (N,): scratch for the bodies' :func:`hill_radius6`.
+    ``star_radius``: the star's physical radius when collisions are searched (else 0)."""
     n = pos.shape[1]
     h2 = dt / 2.0
     m0 = m[0]
     for i in range(n):
-        # The star (at the origin) gets 0. REBOUND gives it its physical radius instead when
-        # that is set, for collisions: no radii here (collision hook, trace_core).
         hill6[i] = hill_radius6(pos[0, i], pos[1, i], pos[2, i], m[i], m0)
+    if star_radius != 0.0:
+        # The star sits at the origin (its "Hill radius" is 0); REBOUND uses its physical radius,
+        # so a body about to hit the star joins the BS set, where the contact is searched.
+        hill6[0] = star_radius * star_radius * star_radius * star_radius * star_radius * star_radius
     rc2 = r_crit_hill * r_crit_hill
     rc6 = rc2 * rc2 * rc2  # REBOUND's rc2 * rc2 * rc2 * max: the same left-to-right products
     new = False
@@ -167,7 +170,7 @@ def _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, h
 
 @jit_inline
 def pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc,
-                   state, hill6):
+                   state, hill6, star_radius):
     """Set the encounter flags at the start of a step (REBOUND ``pre_ts_check``); ``hill6`` (N,)
     is scratch."""
     n = pos.shape[1]
@@ -194,14 +197,14 @@ def pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, per
         state[ST_ENC_N] = n
         for i in range(1, n):
             enc[0, i] = 1
-    _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6)
+    _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6, star_radius)
     for i in range(n):
         enc[1, i] = enc[0, i]
 
 
 @jit_inline
 def post_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc,
-                    state, hill6):
+                    state, hill6, star_radius):
     """Add the flags of the end-of-step state; True if any is new, i.e. the step must be redone.
 
     ``ST_ENC_N`` keeps the pre-step count (REBOUND does not reset it), and bodies are added to it.
@@ -222,6 +225,6 @@ def post_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, pe
         state[ST_ENC_N] = n
         for i in range(n):
             enc[0, i] = 1
-    if _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6):
+    if _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, hill6, star_radius):
         new = True
     return new
