@@ -24,7 +24,7 @@ rebound = pytest.importorskip("rebound")
 #: Bit-for-bit agreement is what the port was checked for; another REBOUND may round differently.
 bitwise = pytest.mark.skipif(rebound.__version__ != "5.2.2", reason="bitwise parity is with REBOUND 5.2.2")
 
-PERI_MODE_IDS = {"partial_bs": 0, "full_bs": 1}
+PERI_MODE_IDS = {"partial_bs": 0, "full_bs": 1, "full_ias15": 2}
 
 
 def state_of(sim: rebound.Simulation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -58,7 +58,7 @@ def integrate(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, dt: flo
     work = make_work(pos.shape[1])
     t, _ = advance(pos, vel, m, G, dt, t0, n_steps, work=work, **settings)
     if t != t_end:
-        t, _ = advance(pos, vel, m, G, t_end - t, t, 1, work=work, **settings)
+        t, _ = advance(pos, vel, m, G, t_end - t, t, 1, work=work, dt_last_done=dt if n_steps else 0.0, **settings)
     return t, counts_of(work)
 
 
@@ -180,6 +180,14 @@ def test_pericentre_passages_in_full_bs_are_bit_identical_to_rebound() -> None:
 
 
 @bitwise
+def test_pericentre_passages_in_full_ias15_are_bit_identical_to_rebound() -> None:
+    rb, ours, counts, de = run_both(pericenter, 10 * 2 * math.pi * 29.4, "full_ias15")
+    assert_bitwise(rb, ours)
+    assert counts["full_bs_steps"] > 0 and counts["full_ias15_steps"] > 0 and counts["full_bs_substeps"] == 0
+    assert de < 1e-4  # REBOUND's bound (test_trace_full_ias15.py has no pericentre test; FULL_BS's is used)
+
+
+@bitwise
 def test_pericentre_passages_in_partial_bs_are_bit_identical_to_rebound() -> None:
     # PARTIAL_BS puts every body in BS with the jump term in its equations; its energy error
     # (8.1e-4, REBOUND's too) is why FULL_BS is the default, so only agreement is checked.
@@ -244,7 +252,7 @@ def test_advance_rejects_bad_input() -> None:
     pos, vel, m = np.zeros((3, 3)), np.zeros((3, 3)), np.array([1.0, 1e-3, 0.0])
     assert active_count(m) == 2
     with pytest.raises(ValueError, match="peri_mode"):
-        advance(pos, vel, m, 1.0, 0.1, 0.0, 1, peri_mode="full_ias15")
+        advance(pos, vel, m, 1.0, 0.1, 0.0, 1, peri_mode="full_ias16")
     with pytest.raises(ValueError, match="after every massive body"):
         advance(pos, vel, np.array([1.0, 0.0, 1e-3]), 1.0, 0.1, 0.0, 1)
     with pytest.raises(ValueError, match="central body"):

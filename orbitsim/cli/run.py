@@ -203,8 +203,9 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
                     f" s ({scenario.integrator}: {own['steps_accepted']:,} steps, {own['steps_rejected']:,} rejected,"
                     f" {rate})")
         if own is not None and "redone" in own:  # a hybrid's encounters: how often it switched and redid a step
+            ias15 = f", {own['full_ias15_steps']:,} IAS15 steps" if own.get("full_ias15_steps") else ""
             done += (f" ({scenario.integrator}: {own['redone']:,} steps redone, "
-                     f"{own['encounter_bs_substeps'] + own['full_bs_substeps']:,} Bulirsch-Stoer sub-steps)")
+                     f"{own['encounter_bs_substeps'] + own['full_bs_substeps']:,} Bulirsch-Stoer sub-steps{ias15})")
         click.echo(f"{summary.name}: {summary.status}, {done}, max |dE/E| = {summary.max_abs_energy_error:.3g}, "
                    f"{summary.samples} samples to {end} -> {summary.output}")
     if not quiet and summary.events:

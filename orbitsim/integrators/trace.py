@@ -7,8 +7,8 @@ so the switching is time-reversible. Outputs fall on whole steps, as for every f
 
 Settings (REBOUND's names and defaults): ``r_crit_hill`` (3), ``peri_crit_eta`` (1) and
 ``peri_mode`` (``full_bs``: a pericentre step integrates the whole system with BS;
-``partial_bs``: only the Kepler part of every body). REBOUND's third mode, ``full_ias15``, is
-refused with a clear error: it is not ported.
+``partial_bs``: only the Kepler part of every body; ``full_ias15``: the whole system with a fresh
+IAS15, :mod:`.trace_ias15`).
 
 State between steps: only ``pos``, ``vel`` and the time, which TRACE sums as ``t += dt`` (its BS
 sub-steps run on the absolute clock, so the clock's last bits matter). The clock lives in ``work``
@@ -37,7 +37,15 @@ from orbitsim.integrators.base import IntegratorSpec, record_sample
 from orbitsim.integrators.trace_collide import H_MERGED, K_HITS, K_LOST
 from orbitsim.integrators.trace_contacts import arm_collisions, post_contacts
 from orbitsim.integrators.trace_core import PERI_MODES, _trace_step, active_count
-from orbitsim.integrators.trace_layout import N_SLOTS, STATUS_OK, W_BOOK, W_COLLIDE, W_HITS, W_RADII
+from orbitsim.integrators.trace_layout import (
+    N_SLOTS,
+    STATUS_IAS15_FAILED,
+    STATUS_OK,
+    W_BOOK,
+    W_COLLIDE,
+    W_HITS,
+    W_RADII,
+)
 from orbitsim.integrators.trace_switch import ST_STATUS
 
 __all__ = ["SETTINGS", "SPEC", "carry_over", "check_bodies", "counters", "failure_message", "make_work", "run",
@@ -85,9 +93,6 @@ def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
             raise ValueError(f"'{key}' must be a finite number {'>' if strict else '>='} 0, got {value!r}")
         config[key] = float(value)
     mode = str(config["peri_mode"]).strip().lower()
-    if mode == "full_ias15":
-        raise ValueError("'peri_mode' full_ias15 is not available in orbitsim's trace yet; use full_bs (REBOUND's "
-                         "default) or partial_bs")
     if mode not in PERI_MODES:
         raise ValueError(f"'peri_mode' must be one of {', '.join(PERI_MODES)}, got {config['peri_mode']!r}")
     config["peri_mode"] = mode
@@ -128,8 +133,13 @@ def counters(work: tuple[Any, ...]) -> dict[str, int]:
 
 def failure_message(work: tuple[Any, ...]) -> str | None:
     """Why the run stopped, when TRACE knows."""
-    if int(work[W_BOOK][ST_STATUS]) == STATUS_OK:
+    status = int(work[W_BOOK][ST_STATUS])
+    if status == STATUS_OK:
         return None
+    if status == STATUS_IAS15_FAILED:
+        return ("trace: the IAS15 of a full_ias15 pericentre step could not finish it (its step fell to nothing or "
+                "the state became non-finite: a body passed through another; give the bodies radii and an events: "
+                "collisions section, or use peri_mode full_bs)")
     return ("trace: a Bulirsch-Stoer sub-step of a close encounter produced nan (two bodies came closer than the "
             "encounter integrator can follow; give the bodies radii and an events: collisions section to merge or "
             "halt them at contact)")
@@ -158,10 +168,12 @@ def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
     _set_clock(work, t0, n_done, dt)  # first call, or a run that continues elsewhere: the clock of step n_done
     clock = work[W_CLOCK]
     real, codes = work[W_REAL], work[W_INT]
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work[:N_SLOTS]
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide, ias15 = work[:N_SLOTS]
     while n_done < n_to:
-        _trace_step(pos, vel, m, force[0], dt, clock[0], real[0], real[1], codes[0], codes[1], force[1], frames,
-                    acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide)
+        dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
+        _trace_step(pos, vel, m, force[0], dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
+                    force[1], frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
+                    collide, ias15)
         clock[0] += dt
         n_done += 1
         clock[1] = n_done

@@ -53,6 +53,7 @@ from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.trace_bs import BS_INT_LENGTH, BS_REAL_LENGTH, N_ROWS
 from orbitsim.integrators.trace_collide import COLLIDE_LENGTH, HIT_COLUMNS, K_DETECT
 from orbitsim.integrators.trace_forces import interaction_kick
+from orbitsim.integrators.trace_ias15 import make_full_ias15_work
 from orbitsim.integrators.trace_kepler import PREV_X_LENGTH, kepler_drift
 from orbitsim.integrators.trace_layout import (
     BOOK_LENGTH,
@@ -68,9 +69,10 @@ from orbitsim.integrators.trace_layout import (
     W_FRAMES,
 )
 from orbitsim.integrators.trace_operators import dh_to_inertial, inertial_to_dh, jump, restore_state, save_state
-from orbitsim.integrators.trace_substeps import encounter_bs, full_bs_step
+from orbitsim.integrators.trace_substeps import encounter_bs, full_bs_step, full_ias15
 from orbitsim.integrators.trace_switch import (
     FULL_BS,
+    FULL_IAS15,
     PARTIAL_BS,
     ST_CURRENT_C,
     ST_ENC_N,
@@ -83,8 +85,8 @@ from orbitsim.integrators.trace_switch import (
 __all__ = ["PERI_MODES", "STATUS_BS_NAN", "STATUS_OK", "W_BOOK", "active_count", "advance", "counts_of", "make_work",
            "trace_run", "trace_step"]
 
-#: ``peri_mode`` by name (FULL_IAS15, REBOUND's mode 2, is not ported yet).
-PERI_MODES = {"partial_bs": PARTIAL_BS, "full_bs": FULL_BS}
+#: ``peri_mode`` by name (REBOUND's modes 0, 1, 2).
+PERI_MODES = {"partial_bs": PARTIAL_BS, "full_bs": FULL_BS, "full_ias15": FULL_IAS15}
 
 #: Rows of the contact table beyond one per body (merges need at most N - 1 rows a step; contacts
 #: that only log or halt are recorded once per pair and step, and a full table is reported).
@@ -107,6 +109,7 @@ def make_work(n_bodies: int) -> tuple[np.ndarray, ...]:
         np.zeros(PREV_X_LENGTH),
         np.zeros((n, n), dtype=np.uint8), np.zeros((2, n), dtype=np.int64), np.zeros(BOOK_LENGTH, dtype=np.int64),
         np.zeros(n), np.zeros((n + EXTRA_HIT_ROWS, len(HIT_COLUMNS))), np.zeros(COLLIDE_LENGTH, dtype=np.int64),
+        make_full_ias15_work(n),
     )
 
 
@@ -117,8 +120,9 @@ def counts_of(work: tuple[np.ndarray, ...]) -> dict[str, int]:
 
 
 @jit_inline
-def _trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening2, frames, acc,
-                com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide):
+def _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening2,
+                frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide,
+                ias15_work):
     """:func:`trace_step` on the unpacked work arrays.
 
     The try and the redo (REBOUND's ``step_try``) are one loop here rather than a function: a
@@ -145,8 +149,13 @@ def _trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_
         current_c = book[ST_CURRENT_C] != 0
         if current_c and peri_mode != PARTIAL_BS:
             book[C_FULL_STEPS] += 1
-            full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real, bs_int, interacts, enc,
-                         book, radii, hits, collide)
+            if peri_mode == FULL_BS:
+                full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real, bs_int, interacts,
+                             enc, book, radii, hits, collide)
+            else:
+                # A redo after this try passes on the try's last IAS15 step (REBOUND's dt_last_done).
+                dt_last_done = full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com,
+                                          ias15_work, book)
             continue
         half = dt / 2.0
         interaction_kick(pos, vel, m, G, softening2, n_active, interacts, acc, half)
@@ -173,30 +182,37 @@ def _trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_
 
 
 @jit
-def trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening, work):
+def trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening,
+               work):
     """One TRACE step of dt from time t; inertial ``pos``, ``vel`` (3, N) updated in place.
 
     ``m`` (N,): masses, body 0 the central one; bodies ``n_active..N-1`` are test particles.
-    ``peri_mode``: :data:`~.trace_switch.PARTIAL_BS` or :data:`~.trace_switch.FULL_BS`. The
-    caller advances t (``t += dt``, as REBOUND). ``work``: :func:`make_work`.
+    ``peri_mode``: one of :data:`PERI_MODES`' values. ``dt_last_done``: REBOUND's, which a
+    FULL_IAS15 step reads (0 on the first step of a run, else the last dt). The caller advances t
+    (``t += dt``, as REBOUND). ``work``: :func:`make_work`.
     """
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
-    _trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening * softening,
-                frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide)
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide, ias15_work = work
+    _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active,
+                softening * softening, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii,
+                hits, collide, ias15_work)
 
 
 @jit
-def trace_run(pos, vel, m, G, dt, t0, n_steps, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening, work):
+def trace_run(pos, vel, m, G, dt, t0, n_steps, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening,
+              dt_last_done, work):
     """``n_steps`` TRACE steps of dt from t0 (see :func:`trace_step`); returns the final time.
 
     Stops early if a BS step produced nan (``work[W_BOOK][ST_STATUS]``).
     """
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide, ias15_work = work
     softening2 = softening * softening
     t = t0
-    for _ in range(n_steps):
-        _trace_step(pos, vel, m, G, dt, t, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening2, frames,
-                    acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide)
+    for k in range(n_steps):
+        if k > 0:
+            dt_last_done = dt
+        _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active,
+                    softening2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
+                    collide, ias15_work)
         t += dt
         if book[ST_STATUS] != STATUS_OK:
             break
@@ -216,12 +232,15 @@ def active_count(m: np.ndarray) -> int:
 
 def advance(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, dt: float, t0: float, n_steps: int, *,
             r_crit_hill: float = 3.0, peri_crit_eta: float = 1.0, peri_mode: str = "full_bs",
-            softening: float = 0.0, work: tuple[np.ndarray, ...] | None = None) -> tuple[float, dict[str, Any]]:
+            softening: float = 0.0, work: tuple[np.ndarray, ...] | None = None, dt_last_done: float = 0.0,
+            ) -> tuple[float, dict[str, Any]]:
     """Validate and take ``n_steps`` TRACE steps in place; returns the final time and the counters.
 
     ``pos``, ``vel``: C-contiguous float64 (3, N) inertial arrays, changed in place; ``m`` (N,):
     the central body first, test particles (m = 0) after every massive body. ``work`` (from
     :func:`make_work`) carries the counters across calls; the time is summed as ``t += dt``.
+    ``dt_last_done``: REBOUND's before the first step (0 at the start of an ``integrate``, else
+    the last step's dt), which a ``full_ias15`` pericentre step reads.
     """
     if peri_mode not in PERI_MODES:
         raise ValueError(f"peri_mode must be one of {sorted(PERI_MODES)}, got {peri_mode!r}")
@@ -244,7 +263,7 @@ def advance(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, dt: float
     elif work[W_FRAMES].shape[2] != pos.shape[1]:
         raise ValueError(f"work was made for {work[W_FRAMES].shape[2]} bodies, not {pos.shape[1]}")
     t = trace_run(pos, vel, masses, float(G), float(dt), float(t0), int(n_steps), float(r_crit_hill),
-                  float(peri_crit_eta), PERI_MODES[peri_mode], n_active, float(softening), work)
+                  float(peri_crit_eta), PERI_MODES[peri_mode], n_active, float(softening), float(dt_last_done), work)
     counts: dict[str, Any] = counts_of(work)
     counts["status"] = int(work[W_BOOK][ST_STATUS])
     return float(t), counts

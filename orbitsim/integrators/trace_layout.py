@@ -19,19 +19,23 @@ W_FRAMES, W_ACC, W_COM, W_ROWS, W_BS_REAL, W_BS_INT, W_PREV_X, W_INTERACTS, W_EN
 #: Collision slots (:mod:`.trace_collide`): the radii (N,), the contacts of the step (``hits``) and
 #: the codes and counts (``collide``).
 W_RADII, W_HITS, W_COLLIDE = 10, 11, 12
-N_SLOTS = 13
+#: The IAS15 of the FULL_IAS15 pericentre step (:mod:`.trace_ias15`, a nested work tuple).
+W_IAS15 = 13
+N_SLOTS = 14
 #: Planes of ``work[W_FRAMES]`` (4, 3, N): the democratic heliocentric state at the start of the
 #: step (restored by a redo) and after the first jump (the encounter bodies' BS start).
 F_BACKUP_POS, F_BACKUP_VEL, F_KEPLER_POS, F_KEPLER_VEL = range(4)
 
 #: Counters in ``work[W_BOOK]``, after the ``ST_*`` flags: steps taken, steps rejected and redone,
-#: encounter BS sub-steps tried and rejected, FULL_BS steps (tries: a redo counts again) and
-#: their BS sub-steps, and contacts found inside sub-steps.
-C_STEPS, C_REDONE, C_ENC_SUBSTEPS, C_ENC_REJECTED, C_FULL_STEPS, C_FULL_SUBSTEPS, C_CONTACTS = range(
-    STATE_LENGTH, STATE_LENGTH + 7)
+#: encounter BS sub-steps tried and rejected, FULL steps (full_bs or full_ias15; named "full_bs_steps";
+#: a redo counts again) and
+#: their BS sub-steps, contacts found inside sub-steps, and the IAS15 steps of FULL_IAS15 steps.
+C_STEPS, C_REDONE, C_ENC_SUBSTEPS, C_ENC_REJECTED, C_FULL_STEPS, C_FULL_SUBSTEPS, C_CONTACTS, C_FULL_IAS15 = range(
+    STATE_LENGTH, STATE_LENGTH + 8)
 COUNT_NAMES = ("steps", "redone", "encounter_bs_substeps", "encounter_bs_rejected", "full_bs_steps",
-               "full_bs_substeps", "contacts")
+               "full_bs_substeps", "contacts", "full_ias15_steps")
 BOOK_LENGTH = STATE_LENGTH + len(COUNT_NAMES)
 
-#: ``ST_STATUS`` values: fine, or a BS step produced nan (the run stops, as REBOUND's).
-STATUS_OK, STATUS_BS_NAN = 0, 1
+#: ``ST_STATUS`` values: fine, a BS step produced nan (the run stops, as REBOUND's), or a FULL_IAS15
+#: step failed (its step fell to nothing, or the state became non-finite).
+STATUS_OK, STATUS_BS_NAN, STATUS_IAS15_FAILED = 0, 1, 2

@@ -4,7 +4,8 @@
   Kepler drift, re-integrated over the outer dt in democratic heliocentric coordinates under the
   star's pull and their flagged pairs (REBOUND ``reb_integrator_trace_bs_step``);
 * :func:`full_bs_step`: a pericentre step in ``full_bs`` mode, the whole system in the inertial
-  frame on the plain Newtonian problem.
+  frame on the plain Newtonian problem (:func:`full_ias15` does the same with IAS15, ``full_ias15``
+  mode, through :mod:`.trace_ias15`).
 
 Both run on the absolute clock from t (REBOUND's BS sub-steps do, and the clock's last bits
 decide the last sub-step), with a fresh controller, and both differ from REBOUND's only in what
@@ -15,6 +16,7 @@ that merged away stays in the arrays as a massless husk, out of the ODE, until t
 from __future__ import annotations
 
 from orbitsim._jit import jit
+from orbitsim.integrators.ias15_core import CLOCK_DT_LAST_DONE, COUNT_ACCEPTED, W_CLOCK, W_COUNTS
 from orbitsim.integrators.trace_bs import (
     BS_ACCEPTED,
     BS_DT_PROPOSED,
@@ -26,15 +28,19 @@ from orbitsim.integrators.trace_bs import (
 )
 from orbitsim.integrators.trace_collide import DETECT_NONE, K_DETECT, collide_set
 from orbitsim.integrators.trace_forces import ODE_ENCOUNTER, ODE_NEWTON
+from orbitsim.integrators.trace_ias15 import STATUS_OK as IAS15_OK
+from orbitsim.integrators.trace_ias15 import full_ias15_step
 from orbitsim.integrators.trace_layout import (
     C_CONTACTS,
     C_ENC_REJECTED,
     C_ENC_SUBSTEPS,
+    C_FULL_IAS15,
     C_FULL_SUBSTEPS,
     F_KEPLER_POS,
     F_KEPLER_VEL,
     MIN_SUBSTEP_FRACTION,
     STATUS_BS_NAN,
+    STATUS_IAS15_FAILED,
 )
 from orbitsim.integrators.trace_operators import dh_to_inertial, inertial_to_dh
 from orbitsim.integrators.trace_switch import ST_CURRENT_C, ST_ENC_N_ACTIVE, ST_FORCE_ACCEPT, ST_STATUS, ST_TPONLY
@@ -193,3 +199,22 @@ def full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real
                                            collide, bs_int, book, False)
     # Recomputes the centre of mass from the new state.
     inertial_to_dh(pos, vel, m, n_active, com)
+
+
+@jit
+def full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com, ias15_work, book):
+    """The whole step by a fresh IAS15 on the inertial Newtonian problem (the FULL_IAS15 pericentre
+    step, :func:`.trace_ias15.full_ias15_step`). Returns REBOUND's ``dt_last_done`` for a redo of
+    this step: the last IAS15 step taken.
+
+    Contacts are not searched inside it (REBOUND does, after every IAS15 step): IAS15 would go on
+    integrating a merged-away body, which sets its steps. The end-of-step checks see them.
+    """
+    # Uses the stored centre of mass, as full_bs_step does.
+    dh_to_inertial(pos, vel, m, n_active, com)
+    status = full_ias15_step(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, ias15_work)
+    book[C_FULL_IAS15] += ias15_work[W_COUNTS][COUNT_ACCEPTED]
+    if status != IAS15_OK:
+        book[ST_STATUS] = STATUS_IAS15_FAILED
+    inertial_to_dh(pos, vel, m, n_active, com)
+    return ias15_work[W_CLOCK][CLOCK_DT_LAST_DONE]

@@ -32,6 +32,7 @@ from orbitsim._jit import jit_inline
 #: ``peri_mode`` ids (REBOUND's ``REB_INTEGRATOR_TRACE_PERIMODE_*``).
 PARTIAL_BS = 0
 FULL_BS = 1
+FULL_IAS15 = 2
 
 #: Slots of the int64 ``state`` array: pericentre flag (REBOUND ``current_C``), only test particles
 #: in encounters (``tponly_encounter``), size of the encounter set and its active part (star
