@@ -299,3 +299,21 @@ def test_a_head_on_collision_ends_with_step_underflow_short_of_the_target() -> N
 def test_make_work_needs_two_bodies() -> None:
     with pytest.raises(ValueError, match="two bodies"):
         make_full_ias15_work(1)
+
+
+def test_the_work_made_inside_a_step_is_ias15s_own_layout_and_settings() -> None:
+    """new_full_ias15_work (jitted, made by each pericentre step) mirrors ias15.make_work: the same
+    fields, shapes, dtypes and zeros, and FULL_IAS15_SETTINGS."""
+    from orbitsim.integrators.ias15 import make_work
+    from orbitsim.integrators.ias15_core import WORK_FIELDS
+    from orbitsim.integrators.trace_ias15 import FULL_IAS15_SETTINGS
+
+    theirs = make_work(np.zeros(5), 1.0, FULL_IAS15_SETTINGS)
+    mine = make_full_ias15_work(5)
+    assert len(mine) == len(theirs) == len(WORK_FIELDS)
+    for name, a, b in zip(WORK_FIELDS, mine, theirs, strict=True):
+        if isinstance(b, np.ndarray):
+            assert (a.shape, a.dtype) == (b.shape, b.dtype), name
+            assert np.array_equal(a, b), name
+        else:
+            assert type(a) is type(b) and a == b, name

@@ -32,6 +32,7 @@ Non-finite numbers are written as ``null`` so the file is strict JSON.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,7 @@ from orbitsim.analysis.report import (
 from orbitsim.analysis.tracegroup import write_file_attrs, write_trace_group
 from orbitsim.io.h5safe import in_memory, new_file
 from orbitsim.provenance import provenance
+from orbitsim.reference.pairs import ENCOUNTER_CHAOS, TWIN_MARGIN
 
 SUMMARY_FORMAT = "orbitsim.compare.summary"
 SUMMARY_VERSION = 3
@@ -171,16 +173,35 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
                      f"{TESTABLE_LIMIT:g} of that size the agreement is not testable, and where the IAS15 "
                      f"reference's |dE/E| exceeds {REFERENCE_ENERGY_LIMIT:g} neither is any verdict "
                      "(see docs/compare.md).")
+    pair_blocks: list[str | Table] = [pairs, *encounter_sentences(result)] if result.verdicts else [
+        "No matched pairs were run."]
     table = scenario_table(sc, steps=_steps(result), samples=result.reference.n_samples, end_time=_end_time(result))
     sections = [Section("Scenario", [table]), Section("Runs", [runs])]
     if result.references:
         sections.append(Section("IAS15 references", [references_table(result)]))
-    sections.append(Section("Matched pairs", [pairs] if result.verdicts else ["No matched pairs were run."]))
+    sections.append(Section("Matched pairs", pair_blocks))
     sections.append(Section("Figures", [Figure(p.name, _FIGURE_CAPTIONS[name]) for name, p in figures.items()]))
     if result.notes:
         sections.append(Section("Notes", list(result.notes)))
     sections.append(reproduce_section(command, sc))
     return Report(f"orbitsim vs REBOUND: {sc.name}", lead, sections)
+
+
+def encounter_sentences(result: CompareResult) -> list[str]:
+    """For each pair of hybrids that switch at close encounters (TRACE), one sentence: encounters
+    are chaotic, so the codes agree bit for bit or diverge as round-off grows, and the
+    twin-divergence tolerance this run allowed, with the difference measured against it."""
+    out = []
+    for v in result.verdicts:
+        if not v.pair.encounters:
+            continue
+        twin = (f"{TWIN_MARGIN:g} x the divergence of a REBOUND twin started 4 ulp away, up to "
+                f"{TWIN_MARGIN * v.twin_max:.3g} of the system's size here" if math.isfinite(v.twin_max)
+                else f"{TWIN_MARGIN:g} x the divergence of a REBOUND twin started 4 ulp away (no twin run here)")
+        out.append(f"{v.name}: {ENCOUNTER_CHAOS}, which the twin-divergence tolerance allows for: {twin} "
+                   f"(measured difference {fmt(v.max_difference)}; allowed there {fmt(v.allowed_at_max)}, "
+                   f"set by the {'twin' if v.twin_limited else 'nominal'} term).")
+    return out
 
 
 def _time_unit(scenario: Any) -> str:

@@ -3,7 +3,8 @@
 Kept apart from :mod:`orbitsim.bench.matrix` (which documents the schema and dispatches to
 :func:`read_adaptive`) because its values may be given per N: IAS15's step is set by the system,
 so one group that times a few planets and a 1,000-body cluster needs a span, a system and a
-softening for each N.
+softening for each N. The per-N readers (:func:`per_n`, :func:`per_n_number`, :func:`per_n_system`)
+serve the ``trace`` kind too (:mod:`orbitsim.bench._trace_fields`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from orbitsim.bench._fields import GENERATED_SYSTEMS, Reader
 if TYPE_CHECKING:
     from orbitsim.bench.matrix import Group
 
-__all__ = ["ADAPTIVE_KEYS", "AdaptiveCase", "expand_adaptive", "read_adaptive"]
+__all__ = ["ADAPTIVE_KEYS", "AdaptiveCase", "distinct_ns", "expand_adaptive", "per_n", "per_n_number", "per_n_system",
+           "read_adaptive"]
 
 #: The keys of an ``adaptive`` group (besides name, kind, repeats, warmup, description).
 ADAPTIVE_KEYS = ("system", "engines", "n", "t_end", "first_dt", "softening", "epsilon", "threads", "seed")
@@ -55,30 +57,37 @@ class AdaptiveCase:
 
 def read_adaptive(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
     """The params of an ``adaptive`` group; per-N values as ``{N: value}`` for every N."""
-    ns = tuple(r.integers(g, "n", path, None, minimum=2))
-    if len(set(ns)) != len(ns):
-        raise r.error(f"{path}.n", f"expected each N once, got {list(ns)}")
-
-    def positive(m: Mapping[Any, Any], key: Any, where: str, _n: int) -> float:
-        return r.number(m, key, where, 0.0)
-
-    def non_negative(m: Mapping[Any, Any], key: Any, where: str, _n: int) -> float:
-        return r.number(m, key, where, 0.0, allow_zero=True)
-
+    ns = distinct_ns(r, g, path)
+    positive, non_negative = per_n_number(r), per_n_number(r, allow_zero=True)
     return {
         "engines": tuple(r.strings(g, "engines", path, list(_ENGINES), choices=_ENGINES)),
         "n": ns,
-        "system": _per_n(r, g, "system", path, ns, "plummer", _system(r)),
-        "t_end": _per_n(r, g, "t_end", path, ns, None, positive),
-        "first_dt": _per_n(r, g, "first_dt", path, ns, 0.01, positive),
-        "softening": _per_n(r, g, "softening", path, ns, 0.01, non_negative),
+        "system": per_n(r, g, "system", path, ns, "plummer", per_n_system(r)),
+        "t_end": per_n(r, g, "t_end", path, ns, None, positive),
+        "first_dt": per_n(r, g, "first_dt", path, ns, 0.01, positive),
+        "softening": per_n(r, g, "softening", path, ns, 0.01, non_negative),
         "epsilon": r.number(g, "epsilon", path, 1e-9),
         "threads": tuple(r.integers(g, "threads", path, [0], minimum=0)),
         "seed": r.integer(g, "seed", path, 1, minimum=0),
     }
 
 
-def _per_n(r: Reader, g: Mapping[str, Any], key: str, path: str, ns: tuple[int, ...], default: Any,
+def distinct_ns(r: Reader, g: Mapping[str, Any], path: str) -> tuple[int, ...]:
+    """The group's ``n``: one or more body counts, each at most once (values are keyed by N)."""
+    ns = tuple(r.integers(g, "n", path, None, minimum=2))
+    if len(set(ns)) != len(ns):
+        raise r.error(f"{path}.n", f"expected each N once, got {list(ns)}")
+    return ns
+
+
+def per_n_number(r: Reader, *, allow_zero: bool = False) -> ReadOne:
+    """A reader of one finite number > 0 (``allow_zero``: >= 0) for :func:`per_n`."""
+    def read(m: Mapping[Any, Any], key: Any, where: str, _n: int) -> float:
+        return r.number(m, key, where, 0.0, allow_zero=allow_zero)
+    return read
+
+
+def per_n(r: Reader, g: Mapping[str, Any], key: str, path: str, ns: tuple[int, ...], default: Any,
            read: ReadOne) -> dict[int, Any]:
     """``{N: value}`` for every N of the group, from one value for all or a mapping ``{N: value}``
     with one entry per N. Errors name ``path.key`` or, for an entry, ``path.key.N``."""
@@ -97,7 +106,7 @@ def _per_n(r: Reader, g: Mapping[str, Any], key: str, path: str, ns: tuple[int, 
     return {n: read(value, n, where, n) for n in ns}
 
 
-def _system(r: Reader) -> ReadOne:
+def per_n_system(r: Reader) -> ReadOne:
     """A generated system, or a bundled or file scenario of exactly N bodies."""
     def read(m: Mapping[Any, Any], key: Any, path: str, n: int) -> str:
         name, where = m[key], f"{path}.{key}"

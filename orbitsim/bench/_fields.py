@@ -13,7 +13,7 @@ from typing import Any
 __all__ = ["GENERATED_SYSTEMS", "BenchMatrixError", "Reader", "join"]
 
 #: Systems the benchmark builds itself; anything else is passed to ``load_scenario``.
-GENERATED_SYSTEMS = ("plummer", "planets")
+GENERATED_SYSTEMS = ("plummer", "planets", "planetesimals")
 
 
 class BenchMatrixError(ValueError):

@@ -68,16 +68,10 @@ class OrbitsimIAS15:
 
     def first_call(self) -> float:
         """Build and integrate one first trial step's span; returns the seconds (JIT included)."""
-        from orbitsim.bench.engines import _jit_counts
-        from orbitsim.integrators.registry import get_module
+        from orbitsim.bench.engines import jit_timed
 
-        run = get_module("ias15").run
-        before = _jit_counts(run)
-        start = time.perf_counter()
-        self._run(self._simulation(self.system.dt or self.case.first_dt))
-        elapsed = time.perf_counter() - start
-        hits, misses = (a - b for a, b in zip(_jit_counts(run), before, strict=True))
-        self.jit = "compiled" if misses else ("cache" if hits else "in-memory")
+        first_span = self.system.dt or self.case.first_dt
+        elapsed, self.jit = jit_timed("ias15", lambda: self._run(self._simulation(first_span)))
         return elapsed
 
     def once(self) -> Timed:
@@ -132,26 +126,18 @@ class ReboundIAS15:
 Stepper = OrbitsimIAS15 | ReboundIAS15
 
 
+def _make(case: AdaptiveCase, system: System) -> Stepper:
+    return (OrbitsimIAS15 if case.engine == "orbitsim" else ReboundIAS15)(case, system)
+
+
 def _prepare(cases: list[AdaptiveCase], threads: tuple[int, int]) -> tuple[list, list[dict]]:
     """Build, compile and warm up each case of one N; (ready cases, skipped cases)."""
-    from orbitsim.bench.runner import select_cases
-    from orbitsim.bench.systems import build_system
+    from orbitsim.bench.interleave import prepare
 
-    systems: dict[str, System] = {}
-    ready: list[tuple[AdaptiveCase, Stepper, float]] = []
-    usable, skipped = select_cases(cases, threads)
-    for case in usable:
-        if case.system not in systems:
-            systems[case.system] = build_system(case.system, case.n, seed=case.seed)
-        stepper: Stepper = (OrbitsimIAS15 if case.engine == "orbitsim" else ReboundIAS15)(case, systems[case.system])
-        first = stepper.first_call()
-        # Only orbitsim is warmed up: its first whole span still loads caches and touches memory,
-        # while REBOUND's C code has nothing to load, and at N = 1000 its warm-up would cost as
-        # much as a repeat.
-        for _ in range(case.warmup if case.engine == "orbitsim" else 0):
-            stepper.once()
-        ready.append((case, stepper, first))
-    return ready, skipped
+    # Only orbitsim is warmed up: its first whole span still loads caches and touches memory,
+    # while REBOUND's C code has nothing to load, and at N = 1000 its warm-up would cost as
+    # much as a repeat.
+    return prepare(cases, threads, _make, warmups=lambda case: case.warmup if case.engine == "orbitsim" else 0)
 
 
 def _record(case: AdaptiveCase, stepper: Stepper, first: float, runs: list[Timed]) -> dict[str, Any]:
@@ -189,12 +175,10 @@ def _pair_with_rebound(records: list[dict[str, Any]]) -> None:
 def _run_n(cases: list[AdaptiveCase], progress: Callable[[str], None],
            threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
     """Every case of one N: prepared, then interleaved timed repeats."""
+    from orbitsim.bench.interleave import rounds
+
     ready, skipped = _prepare(cases, threads)
-    times: list[list[Timed]] = [[] for _ in ready]
-    for r in range(max((c.repeats for c, _, _ in ready), default=0)):
-        for k, (case, stepper, _) in enumerate(ready):
-            if r < case.repeats:
-                times[k].append(stepper.once())
+    times = rounds(ready)
     records = [_record(case, stepper, first, t) for (case, stepper, first), t in zip(ready, times, strict=True)]
     _pair_with_rebound(records)
     for rec in records:
@@ -211,10 +195,6 @@ def run_adaptive_group(cases: list[AdaptiveCase], progress: Callable[[str], None
 
     ``threads`` is (the default thread count for cases that name none, NUMBA_NUM_THREADS).
     """
-    records: list[dict] = []
-    skipped: list[dict] = []
-    for n in dict.fromkeys(c.n for c in cases):
-        got, skip = _run_n([c for c in cases if c.n == n], progress, threads)
-        records += got
-        skipped += skip
-    return records, skipped
+    from orbitsim.bench.interleave import by_n
+
+    return by_n(cases, lambda of_n: _run_n(of_n, progress, threads))

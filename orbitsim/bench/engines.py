@@ -17,6 +17,7 @@ uses, sampling only the last step (one energy evaluation per repeat is part of t
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -24,7 +25,7 @@ import numpy as np
 from orbitsim.bench.matrix import StepsCase
 from orbitsim.bench.systems import System
 
-__all__ = ["OrbitsimStepper", "ReboundStepper", "make_stepper"]
+__all__ = ["OrbitsimStepper", "ReboundStepper", "jit_timed", "make_stepper"]
 
 
 def _jit_counts(dispatcher: Any) -> tuple[int, int]:
@@ -33,6 +34,20 @@ def _jit_counts(dispatcher: Any) -> tuple[int, int]:
     if stats is None:
         return 0, 0
     return sum(stats.cache_hits.values()), sum(stats.cache_misses.values())
+
+
+def jit_timed(integrator: str, call: Callable[[], None]) -> tuple[float, str]:
+    """The seconds ``call()`` takes and how the integrator's jitted ``run`` was made ready in it:
+    ``compiled``, loaded from the ``cache``, or already ``in-memory``."""
+    from orbitsim.integrators.registry import get_module
+
+    run = get_module(integrator).run
+    before = _jit_counts(run)
+    start = time.perf_counter()
+    call()
+    elapsed = time.perf_counter() - start
+    hits, misses = (a - b for a, b in zip(_jit_counts(run), before, strict=True))
+    return elapsed, "compiled" if misses else ("cache" if hits else "in-memory")
 
 
 class OrbitsimStepper:
@@ -54,22 +69,18 @@ class OrbitsimStepper:
 
     def first_call(self) -> float:
         """Build the simulation and take one step; returns the seconds (JIT included)."""
-        from orbitsim.integrators.registry import get_module
+        elapsed, self.jit = jit_timed(self.case.integrator, self._build_and_step)
+        return elapsed
+
+    def _build_and_step(self) -> None:
         from orbitsim.simulation import Simulation
 
         s, c = self.system, self.case
-        run = get_module(c.integrator).run
-        before = _jit_counts(run)
-        start = time.perf_counter()
         self._threads()
         self.sim = Simulation(s.masses.copy(), s.positions.copy(), s.velocities.copy(), c.integrator,
                               s.dt or c.dt, s.G, c.softening if s.softening is None else s.softening,
                               threads=c.threads)
         self._advance(1)
-        elapsed = time.perf_counter() - start
-        hits, misses = (a - b for a, b in zip(_jit_counts(run), before, strict=True))
-        self.jit = "compiled" if misses else ("cache" if hits else "in-memory")
-        return elapsed
 
     def _advance(self, steps: int) -> None:
         target = np.array([self.sim.steps_done + steps], dtype=np.int64)

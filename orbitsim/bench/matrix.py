@@ -33,11 +33,21 @@ A matrix is a list of *groups*; each group has a ``kind`` that says what it meas
         epsilon: 1.0e-9           # IAS15's tolerance in both engines
         engines: [orbitsim, rebound]
         threads: [1, 0]           # orbitsim only
+      - name: trace
+        kind: trace               # TRACE over the same steps: orbitsim's trace beside REBOUND's
+        system: {7: many_encounters, 103: planetesimals}   # a scenario, or a generated system
+        n: [7, 103]
+        t_end: {7: 2000.0, 103: 100.0}        # whole steps of dt while t < t_end, in both engines
+        dt: 0.02                  # generated systems; a scenario brings its own dt and softening
+        softening: 0.0
+        engines: [orbitsim, rebound]
 
 A value given "per N" is a mapping ``{N: value}`` with one entry for each N of ``n``. An
 ``adaptive`` group counts the accepted steps each engine took over the span: the time per step
 is the time over the span divided by that count (a fixed-step ``steps`` group cannot measure an
-adaptive scheme, so ``integrators: all`` there leaves it out and naming it is an error).
+adaptive scheme, so ``integrators: all`` there leaves it out and naming it is an error). A
+``trace`` group takes the same whole steps in both engines, each repeat from the initial state,
+and records whether the final states agree to the bit.
 
 Every error is one line naming the file and the key, e.g.
 ``configs/bench.yaml: groups[1].n[2]: expected an integer >= 1, got 'many'``.
@@ -45,6 +55,7 @@ Every error is one line naming the file and the key, e.g.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -53,6 +64,7 @@ from typing import Any
 
 from orbitsim.bench._adaptive_fields import ADAPTIVE_KEYS, AdaptiveCase, expand_adaptive, read_adaptive
 from orbitsim.bench._fields import GENERATED_SYSTEMS, BenchMatrixError, Reader
+from orbitsim.bench._trace_fields import TRACE_KEYS, TraceCase, expand_trace, read_trace
 
 __all__ = [
     "GENERATED_SYSTEMS",
@@ -63,12 +75,13 @@ __all__ = [
     "BenchMatrixError",
     "Group",
     "StepsCase",
+    "TraceCase",
     "load_matrix",
     "matrix_from_dict",
 ]
 
 #: What a group can measure (see :mod:`orbitsim.bench.runner` for how each is timed).
-KINDS = ("steps", "kernels", "startup", "sampling", "memory", "adaptive")
+KINDS = ("steps", "kernels", "startup", "sampling", "memory", "adaptive", "trace")
 
 #: REBOUND schemes and their force evaluations per step: leapfrog of order 2k composes
 #: 1, 3, 9, 17 substeps (the tables in :mod:`orbitsim.integrators.composition`); WHFast uses one.
@@ -87,6 +100,7 @@ _GROUP_KEYS: dict[str, tuple[str, ...]] = {
     "sampling": ("system", "integrator", "n", "steps", "every", "dt", "seed"),
     "memory": ("n", "steps", "trace_n", "trace_samples", "trace_every", "limit_mb"),
     "adaptive": ADAPTIVE_KEYS,
+    "trace": TRACE_KEYS,
 }
 _COMMON_GROUP_KEYS = ("name", "kind", "repeats", "warmup", "description")
 
@@ -155,6 +169,19 @@ class BenchMatrix:
         """Every (N, engine, threads) case of every ``adaptive`` group, in order (for each N the
         orbitsim cases, one per thread count, then REBOUND)."""
         return [case for group in self.groups if group.kind == "adaptive" for case in expand_adaptive(group)]
+
+    def trace_cases(self) -> list[TraceCase]:
+        """Every (N, engine) case of every ``trace`` group, in order (orbitsim, then REBOUND)."""
+        return [case for group in self.groups if group.kind == "trace" for case in expand_trace(group)]
+
+    def select(self, names: tuple[str, ...]) -> BenchMatrix:
+        """The same matrix with only the groups named (in the matrix's order); raises
+        :class:`BenchMatrixError` naming an unknown group and listing the valid ones."""
+        known = [g.name for g in self.groups]
+        for name in names:
+            if name not in known:
+                raise BenchMatrixError(self.source, "groups", f"no group named {name!r}; groups: {', '.join(known)}")
+        return dataclasses.replace(self, groups=tuple(g for g in self.groups if g.name in names))
 
 
 def load_matrix(path: str | Path) -> BenchMatrix:
@@ -288,7 +315,7 @@ def _read_memory(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
 
 _READERS: dict[str, Callable[[Reader, Mapping[str, Any], str], dict[str, Any]]] = {
     "steps": _read_steps, "kernels": _read_kernels, "startup": _read_startup, "sampling": _read_sampling,
-    "memory": _read_memory, "adaptive": read_adaptive,
+    "memory": _read_memory, "adaptive": read_adaptive, "trace": read_trace,
 }
 
 

@@ -1,4 +1,4 @@
-"""``results.md``: the targets table, the stepping and IAS15 cases side by side, and the probes."""
+"""``results.md``: the targets table, the stepping, IAS15 and TRACE cases side by side, and the probes."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ from typing import Any
 
 from orbitsim.bench.targets import paired_ratio
 
-__all__ = ["adaptive_table", "markdown", "side_by_side", "targets_table"]
+__all__ = ["adaptive_table", "markdown", "side_by_side", "targets_table", "trace_table"]
 
 #: REBOUND scheme an orbitsim integrator is compared with in the side-by-side table.
 PARTNER = {"leapfrog4": "leapfrog:4", "leapfrog6": "leapfrog:6", "leapfrog8": "leapfrog:8",
-           "wisdom_holman": "whfast"}
+           "wisdom_holman": "whfast", "trace": "trace"}
 
 
 def _time(seconds: float) -> str:
@@ -78,6 +78,30 @@ def adaptive_table(doc: dict[str, Any]) -> str:
                      f"{_spread(twin['per_step_s'])} | {ratio['wall']:.3g} | {ratio['cpu']:.3g} | "
                      f"{_time(c['first_call_s'])} ({c['jit']}) |")
     return "\n".join(lines) if len(lines) > 2 else "(no IAS15 case has a REBOUND partner)"
+
+
+def trace_table(doc: dict[str, Any]) -> str:
+    """orbitsim's trace against REBOUND's TRACE over the same steps: the best and median time of
+    each, orbitsim / REBOUND (< 1: orbitsim is faster) from the best repeats and paired by round,
+    the encounter work orbitsim counted and whether the final states agree."""
+    by_id = {c["id"]: c for c in doc.get("trace", [])}
+    lines = ["| group | N | system | to t | steps | orbitsim best (median) | REBOUND best (median) | "
+             "orbitsim / REBOUND, best | paired | CPU | redone | encounter BS sub-steps | final states | "
+             "first call (jit) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for c in doc.get("trace", []):
+        ratio = c.get("orbitsim_over_rebound")
+        twin = by_id.get(ratio["twin"]) if ratio else None
+        if ratio is None or twin is None:
+            continue
+        same = c["agreement"]
+        agree = "bit-identical" if same["bitwise"] else f"differ by {same['position']:.2g}"
+        count = c["counters"]
+        lines.append(f"| {c['group']} | {c['n']} | {c['system']} | {c['t_end']:g} | {c['steps']} | "
+                     f"{_time(c['time_s']['min'])} ({_time(c['time_s']['median'])}) | {_time(twin['time_s']['min'])} "
+                     f"({_time(twin['time_s']['median'])}) | {ratio['best']:.3g} | {ratio['wall']:.3g} | "
+                     f"{ratio['cpu']:.3g} | {count.get('redone', '-')} | {count.get('encounter_bs_substeps', '-')} | "
+                     f"{agree} | {_time(c['first_call_s'])} ({c['jit']}) |")
+    return "\n".join(lines) if len(lines) > 2 else "(no trace case has a REBOUND partner)"
 
 
 def _cases_table(cases: list[dict[str, Any]]) -> str:
@@ -162,6 +186,11 @@ def markdown(doc: dict[str, Any]) -> str:
                   f"Each repeat integrates from t = 0 with epsilon = {epsilon}; the time per step is "
                   "the time over the span divided by the engine's own accepted steps.", "",
                   adaptive_table(doc), ""]
+    if doc.get("trace"):
+        parts += ["## orbitsim beside REBOUND: TRACE over the same steps (interleaved)", "",
+                  "Each repeat integrates from the initial state over the same whole steps in both codes "
+                  "(REBOUND's default TRACE settings); best is the fastest repeat, paired the median over "
+                  "rounds of the ratio within a round.", "", trace_table(doc), ""]
     groups: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for c in doc.get("cases", []):
         groups[c["group"]].append(c)

@@ -4,7 +4,7 @@ Stepping cases are measured one N at a time and *interleaved*: after every case 
 been built, compiled and warmed up, repeat 1 of each case runs, then repeat 2, and so on. The
 machine is shared and its load drifts; interleaving gives every engine the same conditions, so
 the ratios between cases (orbitsim against REBOUND) are meaningful even when absolute times are
-not.
+not (:mod:`orbitsim.bench.interleave`, shared with the ``adaptive`` and ``trace`` kinds).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def quick_matrix(matrix: BenchMatrix) -> BenchMatrix:
             p["trace_samples"] = 0
         elif g.kind == "kernels":
             p["work"] = p["work"] / 10.0
-        elif g.kind == "adaptive":
+        elif g.kind in ("adaptive", "trace"):
             p["t_end"] = {n: t / 10.0 for n, t in p["t_end"].items()}
         groups.append(dataclasses.replace(g, repeats=min(g.repeats, 3), warmup=min(g.warmup, 1), params=p))
     return dataclasses.replace(matrix, groups=tuple(groups))
@@ -88,51 +88,14 @@ def _case_record(case: StepsCase, stepper: Any, first: float, runs: list[tuple[f
     }
 
 
-def select_cases(cases: list[Any], threads: tuple[int, int],
-                 key: Callable[[Any], str] = lambda c: c.case_id) -> tuple[list[Any], list[dict]]:
-    """The cases to time, orbitsim's with the default thread count filled in, and the skipped ones
-    with their reason: more threads than Numba has, or the same case as another once filled in
-    (threads [1, 0] when the default is 1 thread). ``threads`` is (default, Numba's maximum)."""
-    usable: list[Any] = []
-    skipped: list[dict] = []
-    seen: set[str] = set()
-    default, max_threads = threads
-    for case in cases:
-        if case.engine == "orbitsim" and case.threads is None:
-            case = dataclasses.replace(case, threads=default)
-        if case.threads is not None and case.threads > max_threads:
-            skipped.append({"id": case.case_id, "reason": f"{case.threads} threads > NUMBA_NUM_THREADS={max_threads}"})
-        elif key(case) in seen:
-            skipped.append({"id": case.case_id, "reason": "same thread count as another case"})
-        else:
-            seen.add(key(case))
-            usable.append(case)
-    return usable, skipped
-
-
 def _run_n(cases: list[StepsCase], progress: Progress, threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
     """Every case of one N: build and warm up each, then interleaved timed repeats."""
     from orbitsim.bench.engines import make_stepper
-    from orbitsim.bench.systems import build_system
+    from orbitsim.bench.interleave import prepare, rounds
 
-    systems: dict[str, Any] = {}
-    ready: list[tuple[StepsCase, Any, float]] = []
-    usable, skipped = select_cases(cases, threads, key=lambda c: f"{c.case_id}/{c.steps}")
-    for case in usable:
-        if case.system not in systems:
-            systems[case.system] = build_system(case.system, case.n, seed=case.seed)
-        stepper = make_stepper(case, systems[case.system])
-        first = stepper.first_call()
-        for _ in range(case.warmup):
-            stepper.once()
-        ready.append((case, stepper, first))
-    times: list[list[tuple[float, float]]] = [[] for _ in ready]
-    for r in range(max((c.repeats for c, _, _ in ready), default=0)):
-        for k, (case, stepper, _) in enumerate(ready):
-            if r < case.repeats:
-                times[k].append(stepper.once())
+    ready, skipped = prepare(cases, threads, make_stepper, key=lambda c: f"{c.case_id}/{c.steps}")
     records = []
-    for (case, stepper, first), t in zip(ready, times, strict=True):
+    for (case, stepper, first), t in zip(ready, rounds(ready), strict=True):
         rec = _case_record(case, stepper, first, t)
         progress(f"{rec['id']}: {rec['per_step_s']['median'] * 1e6:.3g} us/step, "
                  f"{rec['pairs_per_s']['median']:.3g} pairs/s")
@@ -142,14 +105,10 @@ def _run_n(cases: list[StepsCase], progress: Progress, threads: tuple[int, int])
 
 def _run_steps_group(group: Group, matrix: BenchMatrix, progress: Progress,
                      threads: tuple[int, int]) -> tuple[list, list]:
+    from orbitsim.bench.interleave import by_n
+
     cases = [c for c in matrix.steps_cases() if c.group == group.name]
-    records: list[dict] = []
-    skipped: list[dict] = []
-    for n in sorted({c.n for c in cases}):
-        got, skip = _run_n([c for c in cases if c.n == n], progress, threads)
-        records += got
-        skipped += skip
-    return records, skipped
+    return by_n(cases, lambda of_n: _run_n(of_n, progress, threads), sorted({c.n for c in cases}))
 
 
 def _run_probe(group: Group, progress: Progress) -> dict[str, Any]:
@@ -161,6 +120,26 @@ def _run_probe(group: Group, progress: Progress) -> dict[str, Any]:
     result = run(group)
     progress(f"{group.name} ({group.kind}): done in {time.perf_counter() - start:.1f} s")
     return {"group": group.name, "kind": group.kind, **result}
+
+
+def _run_timed_group(group: Group, matrix: BenchMatrix, progress: Progress,
+                     threads: tuple[int, int]) -> tuple[str, list[dict], list[dict]]:
+    """A group of engines timed side by side: (the results key its records go to, records, skipped).
+
+    Adaptive and TRACE records are kept apart from ``cases``: they have no fixed step count of
+    the matrix's or pair rate, and the fixed-step tables and figures read every entry of ``cases``.
+    """
+    if group.kind == "steps":
+        return ("cases", *_run_steps_group(group, matrix, progress, threads))
+    if group.kind == "adaptive":
+        from orbitsim.bench.adaptive import run_adaptive_group
+
+        cases = [c for c in matrix.adaptive_cases() if c.group == group.name]
+        return ("adaptive", *run_adaptive_group(cases, progress, threads))
+    from orbitsim.bench.trace import run_trace_group
+
+    cases = [c for c in matrix.trace_cases() if c.group == group.name]
+    return ("trace", *run_trace_group(cases, progress, threads))
 
 
 def run_matrix(matrix: BenchMatrix, *, threads: int | None = None, quick: bool = False,
@@ -187,21 +166,12 @@ def run_matrix(matrix: BenchMatrix, *, threads: int | None = None, quick: bool =
     doc["versions"] = {k[: -len("_version")]: v for k, v in doc["machine"].items() if k.endswith("_version")}
     doc["threads"] = default_threads
     doc["ceiling"] = measure_ceiling() if with_ceiling else None
-    doc["cases"], doc["adaptive"], doc["probes"], doc["skipped"] = [], [], [], []
+    doc["cases"], doc["adaptive"], doc["trace"], doc["probes"], doc["skipped"] = [], [], [], [], []
     for group in matrix.groups:
         set_num_threads(default_threads)
-        if group.kind == "steps":
-            records, skipped = _run_steps_group(group, matrix, say, (default_threads, max_threads))
-            doc["cases"] += records
-            doc["skipped"] += skipped
-        elif group.kind == "adaptive":
-            # Apart from "cases": an adaptive case has no fixed step count or pair rate, and the
-            # fixed-step tables and figures read every entry of "cases".
-            from orbitsim.bench.adaptive import run_adaptive_group
-
-            cases = [c for c in matrix.adaptive_cases() if c.group == group.name]
-            records, skipped = run_adaptive_group(cases, say, (default_threads, max_threads))
-            doc["adaptive"] += records
+        if group.kind in ("steps", "adaptive", "trace"):
+            key, records, skipped = _run_timed_group(group, matrix, say, (default_threads, max_threads))
+            doc[key] += records
             doc["skipped"] += skipped
         else:
             doc["probes"].append(_run_probe(group, say))

@@ -9,7 +9,9 @@ closest in time. ``margin`` is always oriented so that >= 1 means the target is 
 
 The IAS15 targets read the ``adaptive`` records (:mod:`orbitsim.bench.adaptive`): the two engines
 integrate the same span but choose their own steps, so their ratio is of time per *accepted*
-step, each engine's time over the span divided by its own count.
+step, each engine's time over the span divided by its own count. The TRACE targets read the
+``trace`` records (:mod:`orbitsim.bench.trace`): both engines take the same steps from the same
+state, and the ratio is of the fastest repeat of each (the suite's paired median beside it).
 """
 
 from __future__ import annotations
@@ -42,6 +44,13 @@ IAS15_SMALL_RATIO = 1.0
 IAS15_VERLET_N = 1024
 #: ... or, when the run has no verlet/leapfrog pair there, by this much.
 IAS15_LARGE_FALLBACK = 5.0
+#: TRACE on REBOUND's many-encounters set-up (the bundled scenario, t = 2000): orbitsim's time at
+#: most REBOUND's TRACE's, and on a disc of ~100 planetesimals with encounters below it. Both are
+#: orbitsim / REBOUND over the same steps, best repeat against best repeat.
+TRACE_RATIO = 1.0
+#: The systems the two TRACE targets read (``system`` of a ``trace`` group).
+TRACE_ENCOUNTERS_SYSTEM = "many_encounters"
+TRACE_DISC_SYSTEM = "planetesimals"
 #: RSS growth allowed from the 10-30% of a long trace-writing run to its last 20% (medians of
 #: the readings, :func:`orbitsim.bench.probes.rss_growth`), as a fraction of the settled RSS.
 TRACE_GROWTH = 0.05
@@ -201,6 +210,37 @@ def _ias15_large(doc: Doc) -> dict[str, Any]:
                 f"{case['id']} vs {case['rebound_over_orbitsim']['twin']}")
 
 
+def _trace_measured(case: dict[str, Any]) -> str:
+    r, same, count = case["orbitsim_over_rebound"], case["agreement"], case["counters"]
+    agree = ("final states bit-identical" if same["bitwise"] else
+             f"final positions differ by {same['position']:.1e} of the system's size")
+    return (f"{r['best']:.2f}x the time (best of {r['rounds']}; paired median {r['wall']:.2f}, CPU {r['cpu']:.2f}); "
+            f"{case['steps']} steps to t = {case['t_end']:g}, {count.get('redone', 0)} redone, "
+            f"{count.get('encounter_bs_substeps', 0)} encounter BS sub-steps; {agree}")
+
+
+def _trace(key: str, label: str, system: str, strict: bool) -> Callable[[Doc], dict[str, Any]]:
+    """A TRACE target on the orbitsim ``trace`` record of ``system`` paired with REBOUND (the one
+    with the most rounds): orbitsim / REBOUND <= 1, or < 1 when ``strict``. A span without a close
+    encounter measures only the Wisdom-Holman map and is reported, not judged."""
+    required = f"orbitsim / REBOUND {'<' if strict else '<='} {TRACE_RATIO:g} (best repeats)"
+
+    def check(doc: Doc) -> dict[str, Any]:
+        found = [c for c in doc.get("trace", []) if c["engine"] == "orbitsim" and c["system"] == system
+                 and "orbitsim_over_rebound" in c]
+        if not found:
+            return _row(key, label, required, None, "not measured", None)
+        case = max(found, key=lambda c: c["orbitsim_over_rebound"]["rounds"])
+        ratio, where = case["orbitsim_over_rebound"]["best"], f"{case['id']} vs {case['orbitsim_over_rebound']['twin']}"
+        if not case["counters"].get("encounter_bs_substeps"):
+            return _row(key, label, required, ratio, _trace_measured(case) + ": no close encounter, not judged",
+                        None, where)
+        row = _row(key, label, required, ratio, _trace_measured(case), TRACE_RATIO / ratio, where)
+        row["met"] = bool(ratio < TRACE_RATIO if strict else ratio <= TRACE_RATIO)
+        return row
+    return check
+
+
 def _startup_warm(doc: Doc) -> dict[str, Any]:
     p = _probe(doc, "startup")
     label = "CLI start-up, tiny scenario, warm cache"
@@ -264,6 +304,10 @@ def _memory_trace(doc: Doc) -> dict[str, Any]:
 TARGETS: tuple[Callable[[Doc], dict[str, Any]], ...] = (
     _throughput, _speedup, _small_n("semi_implicit_euler"), _small_n("verlet"), _startup_warm,
     _startup_cold, _sampling, _memory_large, _memory_trace, _ias15_small, _ias15_large,
+    _trace("trace_many_encounters", "trace on REBOUND's many-encounters set-up vs REBOUND TRACE",
+           TRACE_ENCOUNTERS_SYSTEM, strict=False),
+    _trace("trace_disc", "trace on a disc of ~100 planetesimals with encounters vs REBOUND TRACE", TRACE_DISC_SYSTEM,
+           strict=True),
 )
 
 

@@ -28,12 +28,14 @@ def _config_dir() -> Path:
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="benchmarks/results",
               show_default=True, help="Directory for results.json, results.md and the figures. "
                                       "Example: -o out/bench")
+@click.option("--group", "groups", multiple=True, metavar="NAME",
+              help="Run only this group of the matrix (repeatable). Example: --group trace")
 @threads_option()
 @click.option("--no-plots", is_flag=True, help="Skip the figures. Example: --no-plots")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines; errors only. Example: -q")
 @reports_errors
-def command(matrix: str | None, quick: bool, outdir: str, threads: int | None, no_plots: bool,
-            quiet: bool) -> None:
+def command(matrix: str | None, quick: bool, outdir: str, groups: tuple[str, ...], threads: int | None,
+            no_plots: bool, quiet: bool) -> None:
     """Benchmark orbitsim against REBOUND, side by side in one run.
 
     Runs every group of MATRIX (default: configs/bench.yaml) and writes OUTDIR/results.json
@@ -46,12 +48,15 @@ def command(matrix: str | None, quick: bool, outdir: str, threads: int | None, n
     Examples:
       orbitsim bench --quick -o out/bench
       orbitsim bench configs/bench.yaml -o benchmarks/results --threads 2
+      orbitsim bench configs/bench.yaml --group trace -o benchmarks/results/trace --no-plots
     """
     from orbitsim.bench.matrix import BenchMatrixError, load_matrix
 
     path = Path(matrix) if matrix else _config_dir() / (QUICK_MATRIX if quick else FULL_MATRIX)
     try:
         loaded = load_matrix(path)
+        if groups:
+            loaded = loaded.select(groups)
     except BenchMatrixError as err:
         fail(str(err))
     from orbitsim.bench.runner import run_matrix, write_results

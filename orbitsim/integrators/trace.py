@@ -168,12 +168,12 @@ def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
     _set_clock(work, t0, n_done, dt)  # first call, or a run that continues elsewhere: the clock of step n_done
     clock = work[W_CLOCK]
     real, codes = work[W_REAL], work[W_INT]
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide, ias15 = work[:N_SLOTS]
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work[:N_SLOTS]
     while n_done < n_to:
         dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
         _trace_step(pos, vel, m, force[0], dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
                     force[1], frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
-                    collide, ias15)
+                    collide)
         clock[0] += dt
         n_done += 1
         clock[1] = n_done

@@ -53,7 +53,6 @@ from orbitsim._jit import jit, jit_inline
 from orbitsim.integrators.trace_bs import BS_INT_LENGTH, BS_REAL_LENGTH, N_ROWS
 from orbitsim.integrators.trace_collide import COLLIDE_LENGTH, HIT_COLUMNS, K_DETECT
 from orbitsim.integrators.trace_forces import interaction_kick
-from orbitsim.integrators.trace_ias15 import make_full_ias15_work
 from orbitsim.integrators.trace_kepler import PREV_X_LENGTH, kepler_drift
 from orbitsim.integrators.trace_layout import (
     BOOK_LENGTH,
@@ -109,7 +108,6 @@ def make_work(n_bodies: int) -> tuple[np.ndarray, ...]:
         np.zeros(PREV_X_LENGTH),
         np.zeros((n, n), dtype=np.uint8), np.zeros((2, n), dtype=np.int64), np.zeros(BOOK_LENGTH, dtype=np.int64),
         np.zeros(n), np.zeros((n + EXTRA_HIT_ROWS, len(HIT_COLUMNS))), np.zeros(COLLIDE_LENGTH, dtype=np.int64),
-        make_full_ias15_work(n),
     )
 
 
@@ -121,8 +119,7 @@ def counts_of(work: tuple[np.ndarray, ...]) -> dict[str, int]:
 
 @jit_inline
 def _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening2,
-                frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide,
-                ias15_work):
+                frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide):
     """:func:`trace_step` on the unpacked work arrays.
 
     The try and the redo (REBOUND's ``step_try``) are one loop here rather than a function: a
@@ -155,7 +152,7 @@ def _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta,
             else:
                 # A redo after this try passes on the try's last IAS15 step (REBOUND's dt_last_done).
                 dt_last_done = full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com,
-                                          ias15_work, book)
+                                          book)
             continue
         half = dt / 2.0
         interaction_kick(pos, vel, m, G, softening2, n_active, interacts, acc, half)
@@ -191,10 +188,10 @@ def trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, 
     FULL_IAS15 step reads (0 on the first step of a run, else the last dt). The caller advances t
     (``t += dt``, as REBOUND). ``work``: :func:`make_work`.
     """
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide, ias15_work = work
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
     _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active,
                 softening * softening, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii,
-                hits, collide, ias15_work)
+                hits, collide)
 
 
 @jit
@@ -204,7 +201,7 @@ def trace_run(pos, vel, m, G, dt, t0, n_steps, r_crit_hill, peri_crit_eta, peri_
 
     Stops early if a BS step produced nan (``work[W_BOOK][ST_STATUS]``).
     """
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide, ias15_work = work
+    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
     softening2 = softening * softening
     t = t0
     for k in range(n_steps):
@@ -212,7 +209,7 @@ def trace_run(pos, vel, m, G, dt, t0, n_steps, r_crit_hill, peri_crit_eta, peri_
             dt_last_done = dt
         _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active,
                     softening2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
-                    collide, ias15_work)
+                    collide)
         t += dt
         if book[ST_STATUS] != STATUS_OK:
             break

@@ -34,7 +34,6 @@ import numpy as np
 
 from orbitsim._jit import jit
 from orbitsim.integrators.base import is_finite_state
-from orbitsim.integrators.ias15 import make_work
 from orbitsim.integrators.ias15_core import (
     CLOCK_DT,
     CLOCK_DT_LAST_DONE,
@@ -78,22 +77,39 @@ from orbitsim.integrators.ias15_core import (
 from orbitsim.integrators.ias15_tables import H
 
 __all__ = ["FULL_IAS15_SETTINGS", "STATUS_NON_FINITE", "STATUS_OK", "STATUS_STEP_UNDERFLOW", "basic_accelerations",
-           "full_ias15_step", "make_full_ias15_work"]
+           "full_ias15_step", "make_full_ias15_work", "new_full_ias15_work"]
 
 #: REBOUND's ``reb_integrator_ias15_create`` (integrator_ias15.c:129-131); TRACE cannot change them.
-FULL_IAS15_SETTINGS = {"epsilon": 1e-9, "min_dt": 0.0, "adaptive": True}
+FULL_IAS15_EPSILON, FULL_IAS15_MIN_DT = 1e-9, 0.0
+FULL_IAS15_SETTINGS = {"epsilon": FULL_IAS15_EPSILON, "min_dt": FULL_IAS15_MIN_DT, "adaptive": True}
 #: The loop stops once the next step falls to this fraction of the outer dt (REBOUND's guard
 #: against a stalled clock, integrator_trace.c:1042). Here that ends the step with a failure.
 MIN_STEP_FRACTION = 1e-14
 
 
 def make_full_ias15_work(n_bodies: int) -> tuple:
-    """The IAS15 ``work`` (:data:`~.ias15_core.WORK_FIELDS`) with :data:`FULL_IAS15_SETTINGS`,
-    once per run: every :func:`full_ias15_step` resets it to a new integrator."""
+    """The IAS15 ``work`` (:data:`~.ias15_core.WORK_FIELDS`) with :data:`FULL_IAS15_SETTINGS`:
+    what :func:`new_full_ias15_work` makes inside a step, from Python (with the check of N)."""
     n = int(n_bodies)
     if n < 2:
         raise ValueError(f"a FULL_IAS15 step needs at least two bodies, got {n}")
-    return make_work(np.zeros(n), 1.0, FULL_IAS15_SETTINGS)
+    return new_full_ias15_work(n)
+
+
+@jit
+def new_full_ias15_work(n):
+    """A fresh IAS15 ``work`` for ``n`` bodies: :func:`orbitsim.integrators.ias15.make_work`'s
+    layout (a test holds them equal) with :data:`FULL_IAS15_SETTINGS`.
+
+    Made by each pericentre step rather than kept in TRACE's ``work``: every :func:`full_ias15_step`
+    starts a new integrator anyway, and 14 more arrays passed through every TRACE step cost their
+    reference counts on every step, ~5% of a step on REBOUND's many-encounters set-up (measured),
+    while these allocations come once per pericentre step, beside a whole IAS15 integration.
+    """
+    m = 3 * n
+    return (np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)),
+            np.zeros((7, m)), np.zeros(m), np.zeros(m), np.zeros(m), np.zeros((3, n)), np.zeros(m), np.zeros(m),
+            np.zeros(4), np.zeros(5, dtype=np.int64), FULL_IAS15_EPSILON, FULL_IAS15_MIN_DT, True, np.inf, 0.0)
 
 
 @jit

@@ -19,9 +19,7 @@ W_FRAMES, W_ACC, W_COM, W_ROWS, W_BS_REAL, W_BS_INT, W_PREV_X, W_INTERACTS, W_EN
 #: Collision slots (:mod:`.trace_collide`): the radii (N,), the contacts of the step (``hits``) and
 #: the codes and counts (``collide``).
 W_RADII, W_HITS, W_COLLIDE = 10, 11, 12
-#: The IAS15 of the FULL_IAS15 pericentre step (:mod:`.trace_ias15`, a nested work tuple).
-W_IAS15 = 13
-N_SLOTS = 14
+N_SLOTS = 13
 #: Planes of ``work[W_FRAMES]`` (4, 3, N): the democratic heliocentric state at the start of the
 #: step (restored by a redo) and after the first jump (the encounter bodies' BS start).
 F_BACKUP_POS, F_BACKUP_VEL, F_KEPLER_POS, F_KEPLER_VEL = range(4)

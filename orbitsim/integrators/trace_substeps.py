@@ -29,7 +29,7 @@ from orbitsim.integrators.trace_bs import (
 from orbitsim.integrators.trace_collide import DETECT_NONE, K_DETECT, collide_set
 from orbitsim.integrators.trace_forces import ODE_ENCOUNTER, ODE_NEWTON
 from orbitsim.integrators.trace_ias15 import STATUS_OK as IAS15_OK
-from orbitsim.integrators.trace_ias15 import full_ias15_step
+from orbitsim.integrators.trace_ias15 import full_ias15_step, new_full_ias15_work
 from orbitsim.integrators.trace_layout import (
     C_CONTACTS,
     C_ENC_REJECTED,
@@ -202,7 +202,7 @@ def full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real
 
 
 @jit
-def full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com, ias15_work, book):
+def full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com, book):
     """The whole step by a fresh IAS15 on the inertial Newtonian problem (the FULL_IAS15 pericentre
     step, :func:`.trace_ias15.full_ias15_step`). Returns REBOUND's ``dt_last_done`` for a redo of
     this step: the last IAS15 step taken.
@@ -212,6 +212,7 @@ def full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, c
     """
     # Uses the stored centre of mass, as full_bs_step does.
     dh_to_inertial(pos, vel, m, n_active, com)
+    ias15_work = new_full_ias15_work(pos.shape[1])
     status = full_ias15_step(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, ias15_work)
     book[C_FULL_IAS15] += ias15_work[W_COUNTS][COUNT_ACCEPTED]
     if status != IAS15_OK:

@@ -50,6 +50,14 @@ TWIN_PERTURBATION = 2.0**-50
 #: How far above the twin divergence a pair may be (measured ratio: below 3).
 TWIN_MARGIN = 100.0
 
+#: What the compare report says of a pair whose codes hand close encounters to another integrator
+#: (TRACE), before the tolerance it shows: which encounter happens is decided by round-off-sized
+#: differences near a switching threshold, so there is no middle ground between the same bits and
+#: chaotic divergence, and the twin run measures how fast that divergence grows in this scenario.
+ENCOUNTER_CHAOS = ("close encounters are chaotic, so orbitsim and REBOUND agree bit for bit only while both take "
+                   "the same sequence of encounters, and otherwise diverge at the rate round-off grows in the "
+                   "chaos")
+
 
 @dataclass(frozen=True)
 class MatchedPair:
@@ -65,12 +73,16 @@ class MatchedPair:
         Why the two should agree (or, for a user-specified pair, that the user asked for it).
     builtin : bool
         False for pairs added with ``--pair``.
+    encounters : bool
+        True for hybrids that switch integrators at close encounters (TRACE): the report then
+        states :data:`ENCOUNTER_CHAOS` with the twin-divergence tolerance the pair was judged by.
     """
 
     orbitsim: str
     rebound: ReboundScheme
     reason: str
     builtin: bool = True
+    encounters: bool = False
 
     @property
     def name(self) -> str:
@@ -93,7 +105,7 @@ MATCHED_PAIRS: tuple[MatchedPair, ...] = (
                 "Wisdom-Holman map, same coordinates and corrector as REBOUND WHFast"),
     MatchedPair("trace", ReboundScheme("trace"),
                 "TRACE in both codes: the same switching, Bulirsch-Stoer and order of operations (bit for bit "
-                "until chaotic encounters amplify round-off; the twin run measures that)"),
+                "until chaotic encounters amplify round-off; the twin run measures that)", encounters=True),
 )
 
 #: orbitsim's ias15 and REBOUND's IAS15: an adaptive pair, judged by ``orbitsim compare`` when ias15
