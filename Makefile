@@ -8,10 +8,13 @@ STAMP  := $(VENV)/.installed
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	# REBOUNDx (the forces' cross-checks) builds from source against the installed REBOUND.
+	$(BIN)/python -m pip install --quiet wheel setuptools
+	$(BIN)/python -m pip install --quiet --no-build-isolation 'reboundx==5.1.0'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -42,7 +42,7 @@ _PACKAGE_DIR = Path(__file__).resolve().parent
 
 
 #: The parts of the package that hold jitted code; their source keys the cache directory.
-_KERNEL_SOURCES = ("_jit.py", "physics", "integrators", "events")
+_KERNEL_SOURCES = ("_jit.py", "physics", "integrators", "events", "forces")
 
 
 def _source_hash() -> str:

@@ -137,7 +137,7 @@ class RunLoop:
 
     def _make_simulation(self, threads: int | None) -> Simulation:
         from orbitsim.checkpoint.state import restore_state
-        from orbitsim.simulation import Simulation
+        from orbitsim.simulation import Simulation, scenario_forces
 
         sc = self.scenario
         masses, pos, vel, radii = sc.masses, sc.positions, sc.velocities, sc.radii
@@ -152,7 +152,8 @@ class RunLoop:
             primary = sc.elements_primary
             primary = sc.names.index(primary) if primary in sc.names else primary
         sim = Simulation(masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.grid_dt, sc.G, sc.softening, 0.0,
-                         threads, sc.run_settings, events=sc.events, radii=radii, elements=primary)
+                         threads, sc.run_settings, events=sc.events, radii=radii, elements=primary,
+                         forces=scenario_forces(sc))
         if self.start_point is not None:
             restore_state(sim, self.start_point.checkpoint.state)
         return sim

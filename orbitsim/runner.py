@@ -52,6 +52,9 @@ def trace_attrs(scenario: Scenario, threads: int) -> dict[str, Any]:
         "dt": scenario.dt, "steps_requested": scenario.steps, "G": scenario.G, "softening": scenario.softening,
         "units": scenario.units, "frame": scenario.frame, "n_bodies": scenario.n_bodies, "threads": threads,
     }
+    if getattr(scenario, "forces", ()):
+        # The resolved forces (names, parameters in the scenario's units): what the run applied.
+        attrs["forces"] = json.dumps([dict(entry) for entry in scenario.forces], sort_keys=True, default=float)
     if scenario.t_end is not None:
         attrs["t_end_requested"] = scenario.t_end
     if scenario.interval is not None:

@@ -37,7 +37,8 @@ from orbitsim.sampling import (
 )
 
 __all__ = ["MAX_BUFFER_BYTES", "TARGET_CALL_SECONDS", "SampleChunk", "Simulation", "SimulationError",
-           "SimulationResult", "relative_energy_error", "sample_steps_every", "sample_steps_interval", "simulate"]
+           "SimulationResult", "relative_energy_error", "sample_steps_every", "sample_steps_interval",
+           "scenario_forces", "simulate"]
 
 
 #: Upper bound on the sample buffer of one call, so recording positions stays flat in memory.
@@ -61,6 +62,16 @@ def _as_state(masses: Any, positions: Any, velocities: Any) -> tuple[np.ndarray,
     # Always copies: the integrators work in place, and a caller's (N, 3) view of a (3, N) array
     # (e.g. Simulation.state() of another run, transposed back) must not be overwritten.
     return m.copy(), np.array(x.T, order="C"), np.array(v.T, order="C")
+
+
+def scenario_forces(scenario: Any) -> Any:
+    """A scenario's ForceSet (:func:`orbitsim.forces.schema.force_set`), or None without forces;
+    the forces package is imported only when there are some."""
+    if not getattr(scenario, "forces", ()):
+        return None
+    from orbitsim.forces.schema import force_set
+
+    return force_set(scenario)
 
 
 @dataclass
@@ -95,6 +106,10 @@ class Simulation:
         primary (``"heaviest"``, ``"jacobi"`` or a body index; see
         :func:`orbitsim.physics.orbital_elements.osculating_elements`): the chunks then carry
         ``extra["elements/a"]``, ... (S, N).
+    forces : ForceSet, optional
+        Forces beyond Newtonian point masses (:mod:`orbitsim.forces`); the run then uses the forced
+        loops of :mod:`orbitsim.forces.stepping`, and every energy (samples, :meth:`total_energy`)
+        includes the forces' energy. Without it nothing about forces is imported or compiled.
     """
 
     masses: Any
@@ -110,6 +125,7 @@ class Simulation:
     events: Any = None
     radii: Any = None
     elements: str | int | None = None
+    forces: Any = None
 
     def __post_init__(self) -> None:
         from orbitsim._jit import set_num_threads
@@ -124,6 +140,9 @@ class Simulation:
         self._module = get_module(self.integrator)
         self.spec: IntegratorSpec = self._module.SPEC
         self.threads_used = set_num_threads(self.threads)
+        self._run = self._module.run
+        if self.forces is not None:
+            self._check_forces()
         self.replace_bodies(*_as_state(self.masses, self.positions, self.velocities))
         self.steps_done = 0
         self.diverged = False
@@ -132,6 +151,18 @@ class Simulation:
             from orbitsim.events.driver import Watcher
 
             self.watcher = Watcher(self, self.events, self.radii)
+
+    def _check_forces(self) -> None:
+        """Refuse, in one line, what the forced loops cannot do; else pick the forced ``run``."""
+        from orbitsim.forces.compat import check_run
+        from orbitsim.forces.stepping import forced_run
+
+        why = check_run(self.forces.names, self.spec.name, self.settings, self.events is not None)
+        if why is None and self.forces.per_body.shape[2] != len(np.atleast_1d(self.masses)):
+            why = "the forces were made for a different number of bodies"
+        if why is not None:
+            raise SimulationError(why)
+        self._run = forced_run(self._module)
 
     @property
     def module(self) -> Any:
@@ -168,13 +199,24 @@ class Simulation:
         self.rows = potential_rows_scratch(self.n)
         G, eps2, slabs, bounds = self.force
         accelerations(self.pos, self.m, G, eps2, self.acc, slabs, bounds)
+        self.step_force = self.force  # the context the run loop gets: the forced one with forces
+        if self.forces is not None:
+            from orbitsim.forces.hooks import forced_context
+
+            self.step_force = forced_context(self.force, self.forces.arrays, self.n, self.forces.velocity_dependent)
 
     def total_energy(self) -> float:
-        """Kinetic plus potential energy of the current state."""
+        """Kinetic plus potential energy of the current state, plus the forces' energy
+        (:func:`orbitsim.forces.kernels.force_energy`) in a run with forces."""
         from orbitsim.physics.diagnostics import kinetic_energy, potential_energy
 
-        return float(kinetic_energy(self.vel, self.m)) + float(
+        energy = float(kinetic_energy(self.vel, self.m)) + float(
             potential_energy(self.pos, self.m, self.force[0], self.force[1], self.rows))
+        if self.forces is not None:
+            from orbitsim.forces.kernels import force_energy
+
+            energy += float(force_energy(self.pos, self.vel, self.m, self.G, *self.forces.arrays))
+        return energy
 
     @property
     def time(self) -> float:
@@ -225,8 +267,8 @@ class Simulation:
             out = buffers.views(self.rows)
             start = time.perf_counter()
             if watcher is None:
-                written, n_done, finite = self._module.run(
-                    state, self.force, self.dt, self.work, self.t0, self.steps_done, call_targets, record, out
+                written, n_done, finite = self._run(
+                    state, self.step_force, self.dt, self.work, self.t0, self.steps_done, call_targets, record, out
                 )
             else:
                 written, n_done, finite, acted = watcher.call(self, call_targets, record, out)
@@ -307,6 +349,7 @@ def simulate(
     threads: int | None = None,
     settings: dict[str, Any] | None = None,
     on_chunk: Callable[[SampleChunk], None] | None = None,
+    forces: Any = None,
 ) -> SimulationResult:
     """Integrate an N-body system for ``steps`` whole steps of ``dt`` and return its samples.
 
@@ -333,6 +376,8 @@ def simulate(
         Numba threads (default: ``NUMBA_NUM_THREADS``); results do not depend on it.
     on_chunk : callable, optional
         Called with every :class:`SampleChunk` as it is produced.
+    forces : ForceSet, optional
+        Forces beyond Newtonian point masses (see :class:`Simulation`).
 
     Returns
     -------
@@ -346,7 +391,8 @@ def simulate(
         if last != steps:
             # The loop stops at its last sample: a plan that ends early would silently shorten the run.
             raise SimulationError(f"sample_steps must end at the last step ({steps}), got {last}")
-    sim = Simulation(masses, positions, velocities, integrator, dt, G, softening, 0.0, threads, settings or {})
+    sim = Simulation(masses, positions, velocities, integrator, dt, G, softening, 0.0, threads, settings or {},
+                     forces=forces)
     plan = EveryPlan(int(steps), int(every)) if sample_steps is None else ExplicitPlan(sample_steps)
     start = time.perf_counter()
     parts: list[SampleChunk] = []

@@ -163,12 +163,12 @@ def run_orbitsim(scenario: Any, integrator: str, sample_steps: np.ndarray, *, dt
     the run's own, comparable with REBOUND's, and not Numba's start-up.
     """
     from orbitsim.integrators.registry import get_spec
-    from orbitsim.simulation import simulate
+    from orbitsim.simulation import scenario_forces, simulate
 
     spec = get_spec(integrator)
     step_dt = float(scenario.dt if dt is None else dt)
     common = dict(integrator=spec.name, dt=step_dt, G=scenario.G, softening=scenario.softening,
-                  threads=threads, settings=settings_for(scenario, spec.name))
+                  threads=threads, settings=settings_for(scenario, spec.name), forces=scenario_forces(scenario))
     simulate(scenario.masses, scenario.positions, scenario.velocities, steps=1, record_positions=False,
              **common)
     result = simulate(scenario.masses, scenario.positions, scenario.velocities,

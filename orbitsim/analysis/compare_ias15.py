@@ -99,14 +99,14 @@ def fixed_step_plan(scenario: Any, times: np.ndarray) -> np.ndarray:
 def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) -> RunRecord:
     """orbitsim's ias15 on the comparison's grid, timed after a warm-up that loads its kernels."""
     from orbitsim.results import collect_result
-    from orbitsim.simulation import Simulation
+    from orbitsim.simulation import Simulation, scenario_forces
 
     grid_dt, t_end, points, plan, _ = output_grid(scenario)
     run_settings = {**settings, "adaptive": True, "first_dt": float(scenario.dt), "t_end": t_end}
 
     def make() -> Simulation:
         return Simulation(scenario.masses, scenario.positions, scenario.velocities, "ias15", grid_dt, scenario.G,
-                          scenario.softening, 0.0, threads, run_settings)
+                          scenario.softening, 0.0, threads, run_settings, forces=scenario_forces(scenario))
 
     for _ in make().chunks(np.zeros(1, dtype=np.int64)):  # compile or load the cached kernels
         pass

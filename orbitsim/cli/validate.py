@@ -77,6 +77,10 @@ def _describe(spec: str, scenario: object, size: int) -> None:
     click.echo(f"ok: {spec}: {s.name}, {s.n_bodies} bodies, {s.integrator}, dt = {s.dt:g}, {length}, "
                f"{'' if exact else 'at most '}{samples} samples ({sampling}), positions "
                f"{'on' if s.record_positions else 'off'}, trace about {format_bytes(size)}")
+    if s.forces:
+        from orbitsim.forces.schema import describe_forces
+
+        click.echo(f"  forces: {describe_forces(s.forces)}")
     estimate = estimate_time(s)
     if estimate is not None:
         click.echo(f"  time: {estimate.describe()}")

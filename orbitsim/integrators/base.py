@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
+from orbitsim.forces.hooks import record_force_energy
 from orbitsim.physics.diagnostics import (
     angular_momentum_into,
     kinetic_energy,
@@ -122,6 +123,7 @@ def record_sample(r, n_done, t0, dt, pos, vel, m, force, out):
     steps[r] = n_done
     scalars[r, 0] = kinetic_energy(vel, m)
     scalars[r, 1] = potential_energy(pos, m, force[0], force[1], rows)
+    record_force_energy(force, pos, vel, m, scalars, r)  # a forced run's potential includes the forces'
     momentum_into(vel, m, scalars[r, 2:5])
     angular_momentum_into(pos, vel, m, scalars[r, 5:8])
     if snapshots.shape[0] > 0:

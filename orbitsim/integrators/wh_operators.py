@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 
 from orbitsim._jit import jit
+from orbitsim.forces.hooks import add_interaction_forces
 from orbitsim.integrators.wh_settings import COORDINATE_IDS
 from orbitsim.physics.coordinates import (
     democratic_heliocentric_to_inertial_pos,
@@ -169,8 +170,12 @@ def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
 
 
 @jit
-def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, acc):
+def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, acc, forces=None):
     """The kick ``I(h)`` of the mapping state ``jpos``, ``jvel``; ``ipos``, ``acc`` are scratch.
+
+    ``forces``: a forced run's force arrays (:mod:`orbitsim.forces.hooks`), whose position-only
+    forces are added to the inertial accelerations before their Jacobi transform, as REBOUND's
+    WHFast adds ``additional_forces``; None (the default) compiles to the kick without them.
 
     Jacobi: the inertial positions (:func:`~orbitsim.physics.coordinates.jacobi_to_inertial`),
     the pair accelerations, their Jacobi transform
@@ -192,6 +197,7 @@ def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, 
     else:
         raise ValueError("wisdom_holman: unknown coordinates id")
     interaction_accelerations(ipos, m, G, eps2, coordinates, acc)
+    add_interaction_forces(forces, G, ipos, m, acc)
     if coordinates == DEMOCRATIC_HELIOCENTRIC:
         for c in range(3):
             for i in range(1, n):

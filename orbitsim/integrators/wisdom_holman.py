@@ -62,6 +62,7 @@ import numpy as np
 
 from orbitsim._jit import jit
 from orbitsim.events.kernels import watched_run
+from orbitsim.forces.hooks import force_arrays
 from orbitsim.integrators.base import IntegratorSpec, record_sample
 from orbitsim.integrators.wh_correctors import CORRECTOR_STAGES, apply_corrector
 from orbitsim.integrators.wh_operators import (
@@ -284,6 +285,7 @@ def _advance_to(target, n_done, m, force, dt, work):
     ks, kstage = work[W_KSCRATCH], work[W_KSTAGE]
     G = force[0]
     eps2 = force[1]
+    forces = force_arrays(force)  # None without forces (orbitsim.forces.hooks)
     half = 0.5 * dt
     while n_done < target:
         h = half if flags[F_PHASE] == PHASE_SYNCED else dt
@@ -294,7 +296,7 @@ def _advance_to(target, n_done, m, force, dt, work):
             jpos[c, 0] += h * jvel[c, 0]  # the centre of mass drifts
         if heliocentric:
             jump(jpos, jvel, m, half)
-        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc)
+        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc, forces)
         if heliocentric:
             jump(jpos, jvel, m, half)
         flags[F_PHASE] = PHASE_LAGGING

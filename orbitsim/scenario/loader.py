@@ -20,7 +20,7 @@ from orbitsim.scenario.yamlio import parse_yaml
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "steps", "t_end", "output", "softening",
-            "frame", "bodies", "ephemeris", "generator", "events")
+            "frame", "bodies", "ephemeris", "generator", "events", "forces")
 OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary")
 CHECKPOINT_KEYS = ("every", "seconds")
 #: A YAML file in the config directory is a scenario when one of these starts a line: the same
@@ -199,7 +199,8 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                         interval=interval, record_positions=positions, softening=softening, frame=frame,
                         names=tuple(bodies.names), masses=m, positions=x, velocities=v, source=source,
                         checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, radii=radii,
-                        events=events, record_elements=elements, elements_primary=primary)
+                        events=events, record_elements=elements, elements_primary=primary,
+                        forces=top.raw("forces", ()))
     scenario.remember_origins(bodies.origins)
     return scenario
 

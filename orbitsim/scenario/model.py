@@ -89,6 +89,8 @@ class Scenario:
         ``output.elements``: store every body's osculating elements at every sample.
     elements_primary : str
         ``output.primary``: ``heaviest``, ``jacobi`` or a body name.
+    forces : tuple of dict
+        The ``forces:`` list, resolved (:mod:`orbitsim.forces.schema`); empty for none.
     """
 
     name: str
@@ -116,6 +118,7 @@ class Scenario:
     events: Any = None
     record_elements: bool = False
     elements_primary: str = "heaviest"
+    forces: tuple[dict[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         try:
@@ -153,6 +156,23 @@ class Scenario:
                                 key="output.positions")
         check_coincident(self.positions, self.names, None, self.softening)
         self._validate_events()
+        self._validate_forces()
+
+    def _validate_forces(self) -> None:
+        """Resolve the forces (again: a new integrator or new bodies may not fit them) and check that
+        the integrator can apply each; the forces package is imported only when there are some."""
+        if not self.forces:
+            self._set("forces", ())
+            return
+        from orbitsim.forces.compat import check_run
+        from orbitsim.forces.schema import read_forces
+
+        self._set("forces", read_forces(self.forces, self.names, self.units, masses=self.masses, G=self.G))
+        for k, entry in enumerate(self.forces):
+            refusal = check_run((entry["force"],), self.integrator, self.integrator_settings or {},
+                                self.events is not None)
+            if refusal is not None:
+                raise ScenarioError(refusal, key=f"forces[{k}]")
 
     def _validate_events(self) -> None:
         from orbitsim.scenario.events import check_elements_output, check_events, check_radii
@@ -327,6 +347,9 @@ class Scenario:
     def notes(self) -> list[str]:
         """Things a user should know before running, one line each (may be empty)."""
         notes = []
+        if any(entry["force"] == "migration" for entry in self.forces):
+            notes.append("migration adds or removes energy on purpose: the energy error measures it, not the "
+                         "integrator's error")
         if self.adaptive:
             return notes  # t_end is reached exactly, and every output interval is sampled
         if not self.t_end_is_whole:

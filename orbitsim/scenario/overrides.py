@@ -21,7 +21,7 @@ __all__ = ["OVERRIDABLE", "resolve_overrides"]
 OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "steps", "t_end", "every",
                "interval", "record_positions", "softening", "G", "names", "masses", "positions",
                "velocities", "source", "checkpoint_every", "checkpoint_seconds", "radii", "events", "record_elements",
-               "elements_primary")
+               "elements_primary", "forces")
 
 
 def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, Any]:

@@ -3,7 +3,7 @@
 Bodies are explicit and Cartesian, the frame is ``as_given`` (any shift is already applied),
 ``steps`` replaces ``t_end`` (except for an adaptive integrator, whose grid ends on ``t_end``
 exactly) and the sampling is explicit, so loading the text reproduces the same bits. Keys a
-scenario does not use (radii, ``events``, ``output.elements``, ``output.checkpoint``) are left
+scenario does not use (radii, ``events``, ``forces``, ``output.elements``, ``output.checkpoint``) are left
 out rather than written as defaults, so the text and SHA-256 of every scenario written before
 they existed stay the same.
 """
@@ -25,7 +25,9 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
     integrator: Any = s.integrator
     if s.integrator_settings:
         integrator = {"name": s.integrator, **s.integrator_settings}
-    output: dict[str, Any] = ({"interval": s.interval} if s.interval is not None else {"every": s.sample_every})
+    # An adaptive scheme samples by time only (``every`` is refused), so its default grid is written as the interval.
+    interval = s.interval if s.interval is not None or not s.adaptive else s.grid_dt
+    output: dict[str, Any] = {"interval": interval} if interval is not None else {"every": s.sample_every}
     output["positions"] = bool(s.record_positions)
     if s.record_elements:
         output["elements"] = True
@@ -45,6 +47,8 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         doc = {("t_end" if k == "steps" else k): (s.t_end if k == "steps" else v) for k, v in doc.items()}
     if s.events is not None:
         doc["events"] = s.events.to_dict()
+    if s.forces:  # resolved: c, source and spin axis explicit, so the text says what ran
+        doc["forces"] = [dict(entry) for entry in s.forces]
     doc["bodies"] = bodies
     return doc
 
@@ -58,6 +62,9 @@ def scenario_to_yaml(s: Scenario) -> str:
         if key in ("output", "events"):
             lines.append(f"{key}:")
             lines.extend(f"  {k}: {dump_value(v)}" for k, v in value.items())
+        elif key == "forces":
+            lines.append(f"{key}:")
+            lines.extend(f"  - {dump_value(entry)}" for entry in value)
         else:
             lines.append(f"{key}: {dump_value(value)}")
     lines.append("bodies:")

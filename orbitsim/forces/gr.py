@@ -1,0 +1,247 @@
+"""General relativity about one dominant mass: REBOUNDx ``gr_potential`` and ``gr``, jitted.
+
+``gr_potential`` (Nobili & Roxburgh 1986, IAU Symp. 114, 105): every body i other than the
+source s (mass M) feels the position-only acceleration
+
+    a_i = -6 (G M)^2 / (c^2 r^4) d,   d = x_i - x_s,  r = |d|,
+
+from the potential energy U = -3 (G M)^2 m_i / (c^2 r^2); the source takes the reaction
+-(m_i / M) a_i. It gets the pericentre precession right and the mean motion wrong by O(GM/(a c^2)).
+
+``gr`` (Anderson et al. 1975, ApJ 200, 221; REBOUNDx ``gr.c``): the first post-Newtonian force of
+a single mass, applied to every body's Jacobi coordinate, with mu = G M:
+
+    a_PN = B (1 - A) r - A a_N - D v~,
+    A = (v~^2 / 2 + 3 mu / r) / c^2,   B = (mu / r - 3/2 v~^2) mu / (r^3 c^2),
+    D = (v~ . (a_N + B r) - 3 mu / r^3 (r . v)) / c^2,
+
+where v~ = v / (1 - A) is solved by fixed-point iteration (A depends on v~), and a_N is the
+Newtonian acceleration of the Jacobi coordinate. Its conserved Hamiltonian (REBOUNDx
+``rebx_gr_hamiltonian``) is the Newtonian energy with v~ in the Jacobi kinetic energy plus
+
+    V_PN = sum_i m'_i [mu^2 / (2 r^2) - v~^4 / 8 - 3/2 mu v~^2 / r] / c^2   (m'_i: Jacobi masses).
+
+REBOUNDx always takes particle 0 as the source. Here the source may be any body: the Jacobi chain
+is built with the source first and the other bodies after it in index order, which for source 0
+is REBOUNDx's chain, operation for operation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from orbitsim._jit import jit
+
+#: Fixed-point iterations for v~ (REBOUNDx's default ``max_iterations``).
+MAX_ITERATIONS = 10
+_EPS = np.finfo(np.float64).eps
+
+
+@jit
+def gr_potential_accelerations(pos, m, G, src, c, acc):
+    """acc (3, N) += the Nobili-Roxburgh acceleration of every body about ``src``, and its reaction."""
+    C2 = c * c
+    gm = G * m[src]
+    prefac1 = 6.0 * gm * gm / C2
+    for i in range(pos.shape[1]):
+        if i == src:
+            continue
+        dx = pos[0, i] - pos[0, src]
+        dy = pos[1, i] - pos[1, src]
+        dz = pos[2, i] - pos[2, src]
+        r2 = dx * dx + dy * dy + dz * dz
+        prefac = prefac1 / (r2 * r2)
+        acc[0, i] -= prefac * dx
+        acc[1, i] -= prefac * dy
+        acc[2, i] -= prefac * dz
+        ratio = m[i] / m[src]
+        acc[0, src] += ratio * prefac * dx
+        acc[1, src] += ratio * prefac * dy
+        acc[2, src] += ratio * prefac * dz
+
+
+@jit
+def gr_potential_energy(pos, m, G, src, c):
+    """U = -sum_i 3 (G M)^2 m_i / (c^2 r_i^2) (REBOUNDx ``rebx_gr_potential_potential``)."""
+    C2 = c * c
+    mu = G * m[src]
+    prefac = 3.0 * mu * mu / C2
+    H = 0.0
+    for i in range(pos.shape[1]):
+        if i == src:
+            continue
+        dx = pos[0, i] - pos[0, src]
+        dy = pos[1, i] - pos[1, src]
+        dz = pos[2, i] - pos[2, src]
+        r2 = dx * dx + dy * dy + dz * dz
+        H -= prefac * m[i] / r2
+    return H
+
+
+@jit
+def chain(k, src):
+    """The body at place k of the Jacobi chain: the source first, then the others in index order."""
+    if k == 0:
+        return src
+    if k - 1 < src:
+        return k - 1
+    return k
+
+
+@jit
+def _newtonian_in_chain(pos, m, G, src, an):
+    """an (3, N) = Newtonian accelerations, indexed by chain place, pairs summed in chain order."""
+    n = pos.shape[1]
+    an[:, :] = 0.0
+    for a in range(n):
+        i = chain(a, src)
+        for b in range(a + 1, n):
+            j = chain(b, src)
+            dx = pos[0, i] - pos[0, j]
+            dy = pos[1, i] - pos[1, j]
+            dz = pos[2, i] - pos[2, j]
+            r2 = dx * dx + dy * dy + dz * dz
+            r = np.sqrt(r2)
+            prefac = G / (r2 * r)
+            an[0, a] -= prefac * m[j] * dx
+            an[1, a] -= prefac * m[j] * dy
+            an[2, a] -= prefac * m[j] * dz
+            an[0, b] += prefac * m[i] * dx
+            an[1, b] += prefac * m[i] * dy
+            an[2, b] += prefac * m[i] * dz
+
+
+@jit
+def _to_jacobi(pos, vel, an, m, src, jac):
+    """jac rows 0-8 = Jacobi x, v, a of chain places 1..N-1 (REBOUND's posvelacc transformation);
+    returns the total mass. Column 0 (no Jacobi coordinate) holds the running mass-weighted sums."""
+    n = pos.shape[1]
+    i0 = chain(0, src)
+    eta = m[i0]
+    for c in range(3):
+        jac[c, 0] = eta * pos[c, i0]
+        jac[3 + c, 0] = eta * vel[c, i0]
+        jac[6 + c, 0] = eta * an[c, 0]
+    for k in range(1, n):
+        i = chain(k, src)
+        ei = 1.0 / eta
+        eta += m[i]
+        pme = eta * ei
+        for c in range(3):
+            jac[c, k] = pos[c, i] - jac[c, 0] * ei
+            jac[3 + c, k] = vel[c, i] - jac[3 + c, 0] * ei
+            jac[6 + c, k] = an[c, k] - jac[6 + c, 0] * ei
+        for c in range(9):
+            jac[c, 0] = jac[c, 0] * pme + m[i] * jac[c, k]
+    return eta
+
+
+@jit
+def _solve_vtilde(vx, vy, vz, ri, mu, C2):
+    """v~ = v / (1 - A(v~)) by fixed-point iteration, REBOUNDx's stopping rule; returns v~, A."""
+    wx, wy, wz = vx, vy, vz
+    w2 = wx * wx + wy * wy + wz * wz
+    A = (0.5 * w2 + 3.0 * mu / ri) / C2
+    for _ in range(MAX_ITERATIONS):
+        ox, oy, oz = wx, wy, wz
+        wx = vx / (1.0 - A)
+        wy = vy / (1.0 - A)
+        wz = vz / (1.0 - A)
+        w2 = wx * wx + wy * wy + wz * wz
+        A = (0.5 * w2 + 3.0 * mu / ri) / C2
+        dx, dy, dz = wx - ox, wy - oy, wz - oz
+        if (dx * dx + dy * dy + dz * dz) / w2 < _EPS * _EPS:
+            break
+    return wx, wy, wz, w2, A
+
+
+@jit
+def gr_accelerations(pos, vel, m, G, src, c, acc, work):
+    """acc (3, N) += the single-mass 1PN acceleration (module docstring) about ``src``.
+
+    ``work``: at least (15, N) scratch (Newtonian, Jacobi and Jacobi-PN accelerations).
+    """
+    n = pos.shape[1]
+    C2 = c * c
+    mu = G * m[src]
+    an = work[0:3]
+    jac = work[3:12]
+    apn = work[12:15]
+    _newtonian_in_chain(pos, m, G, src, an)
+    eta = _to_jacobi(pos, vel, an, m, src, jac)
+    for k in range(1, n):
+        x, y, z = jac[0, k], jac[1, k], jac[2, k]
+        ri = np.sqrt(x * x + y * y + z * z)
+        wx, wy, wz, w2, A = _solve_vtilde(jac[3, k], jac[4, k], jac[5, k], ri, mu, C2)
+        B = (mu / ri - 1.5 * w2) * mu / (ri * ri * ri) / C2
+        rdotrdot = x * jac[3, k] + y * jac[4, k] + z * jac[5, k]
+        vdx = jac[6, k] + B * x
+        vdy = jac[7, k] + B * y
+        vdz = jac[8, k] + B * z
+        vdotvdot = wx * vdx + wy * vdy + wz * vdz
+        D = (vdotvdot - 3.0 * mu / (ri * ri * ri) * rdotrdot) / C2
+        apn[0, k] = B * (1.0 - A) * x - A * jac[6, k] - D * wx
+        apn[1, k] = B * (1.0 - A) * y - A * jac[7, k] - D * wy
+        apn[2, k] = B * (1.0 - A) * z - A * jac[8, k] - D * wz
+    # Back to inertial accelerations (REBOUND's jacobi_to_inertial_acc; the centre of mass's is 0).
+    sx = 0.0 * eta
+    sy = 0.0 * eta
+    sz = 0.0 * eta
+    for k in range(n - 1, 0, -1):
+        i = chain(k, src)
+        ei = 1.0 / eta
+        sx = (sx - m[i] * apn[0, k]) * ei
+        sy = (sy - m[i] * apn[1, k]) * ei
+        sz = (sz - m[i] * apn[2, k]) * ei
+        acc[0, i] += apn[0, k] + sx
+        acc[1, i] += apn[1, k] + sy
+        acc[2, i] += apn[2, k] + sz
+        eta -= m[i]
+        sx *= eta
+        sy *= eta
+        sz *= eta
+    i0 = chain(0, src)
+    mi = 1.0 / eta
+    acc[0, i0] += sx * mi
+    acc[1, i0] += sy * mi
+    acc[2, i0] += sz * mi
+
+
+@jit
+def gr_energy(pos, vel, m, G, src, c):
+    """What ``gr``'s Hamiltonian adds to the Newtonian energy (REBOUNDx ``rebx_gr_hamiltonian``):
+    sum_i m'_i (v~_i^2 - v_i^2) / 2 over Jacobi coordinates, plus V_PN. The Jacobi chain is built
+    on the fly (no storage)."""
+    n = pos.shape[1]
+    C2 = c * c
+    mu = G * m[src]
+    i0 = chain(0, src)
+    eta = m[i0]
+    sx, sy, sz = eta * pos[0, i0], eta * pos[1, i0], eta * pos[2, i0]
+    svx, svy, svz = eta * vel[0, i0], eta * vel[1, i0], eta * vel[2, i0]
+    dT = 0.0
+    V_PN = 0.0
+    for k in range(1, n):
+        i = chain(k, src)
+        ei = 1.0 / eta
+        mj = m[i] * eta  # the Jacobi mass m_i eta_{k-1} / eta_k, divided below as REBOUNDx does
+        eta += m[i]
+        mj /= eta
+        pme = eta * ei
+        x, y, z = pos[0, i] - sx * ei, pos[1, i] - sy * ei, pos[2, i] - sz * ei
+        vx, vy, vz = vel[0, i] - svx * ei, vel[1, i] - svy * ei, vel[2, i] - svz * ei
+        sx, sy, sz = sx * pme + m[i] * x, sy * pme + m[i] * y, sz * pme + m[i] * z
+        svx, svy, svz = svx * pme + m[i] * vx, svy * pme + m[i] * vy, svz * pme + m[i] * vz
+        rdoti2 = vx * vx + vy * vy + vz * vz
+        vt2 = rdoti2
+        ri = np.sqrt(x * x + y * y + z * z)
+        vscale2 = mu / ri
+        for _ in range(MAX_ITERATIONS):
+            old = vt2
+            A = (0.5 * vt2 + 3.0 * vscale2) / C2
+            vt2 = rdoti2 / ((1.0 - A) * (1.0 - A))
+            if (vt2 - old) / vt2 < _EPS:  # signed, as REBOUNDx's test
+                break
+        V_PN += mj * (0.5 * mu * mu / (ri * ri) - 0.125 * vt2 * vt2 - 1.5 * mu * vt2 / ri)
+        dT += 0.5 * mj * (vt2 - rdoti2)
+    return dT + V_PN / C2
