@@ -28,7 +28,7 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
 
 def test_demo_writes_report_and_says_where(demo: tuple[Path, str]) -> None:
     out, stdout = demo
-    for name in ("report.html", "report.md", "lesson_orbits.png", "lesson_dt.png", "summary.json"):
+    for name in ("report.html", "report.md", "lesson_orbits.png", "lesson_dt.png", "summary.json", "lesson.html"):
         assert (out / name).stat().st_size > 0, name
     assert stdout.strip().splitlines()[-1] == f"report: {(out / 'report.html').resolve()}"
 

@@ -165,6 +165,9 @@ def build_report(result: LessonResult, figures: dict[str, Path], command: str) -
                                "halving dt buys Verlet four times the accuracy. Explicit Euler's error is so "
                                "large that it keeps growing through the run at every dt tried: its slope is "
                                "not yet its order."]),
+        Section("Play with it", ["lesson.html, beside this report, plays these runs: the three orbits side by "
+                                 "side over their energy traces, with a dt slider and a frame-rate control. It "
+                                 "works offline; open it in any browser."]),
         Section("Numbers", [table]),
         Section("Scenario", [scenario_table(sc, steps=sc.steps, samples=result.reference.n_samples)]),
         reproduce_section(command, sc),
@@ -172,7 +175,9 @@ def build_report(result: LessonResult, figures: dict[str, Path], command: str) -
 
 
 def write_lesson_outputs(result: LessonResult, outdir: Path, command: str) -> dict[str, Path]:
-    """Write both figures, summary.json and report.md/.html into ``outdir`` (replacing them)."""
+    """Write both figures, summary.json, report.md/.html and the page to play, lesson.html, into
+    ``outdir`` (replacing them)."""
+    from orbitsim.analysis.lesson_page import page_runs, write_lesson_page
     from orbitsim.analysis.report import write_report
 
     outdir.mkdir(parents=True, exist_ok=True)
@@ -185,4 +190,5 @@ def write_lesson_outputs(result: LessonResult, outdir: Path, command: str) -> di
            "sweep": [vars(p) for p in result.sweep], "provenance": provenance()}
     summary.write_text(json.dumps(json_safe(doc), indent=2) + "\n", encoding="utf-8")
     md, page = write_report(build_report(result, figures, command), outdir)
-    return {**figures, "summary": summary, "markdown": md, "html": page}
+    lesson = write_lesson_page(result, page_runs(result.scenario), outdir)
+    return {**figures, "summary": summary, "markdown": md, "html": page, "lesson": lesson}

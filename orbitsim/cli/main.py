@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "list": ("listing", "List integrators or bundled scenarios."),
     "info": ("info", "Show what is in an HDF5 trace."),
     "plot": ("plot", "Plot orbits and |dE/E| from a trace."),
+    "animate": ("animate", "Render a movie (MP4 or GIF) of a scenario or a trace."),
     "compare": ("compare", "Cross-check orbitsim against REBOUND on a scenario."),
     "convergence": ("convergence", "Measure convergence order against a reference."),
     "demo": ("demo", "Run the lesson: one orbit, three ways to step time."),

@@ -1,6 +1,7 @@
 """``orbitsim plot``: orbits on the x-y plane and |dE/E| against time, in one figure; or, with
 ``--elements``, every body's osculating elements against time
-(:mod:`orbitsim.analysis.element_figure`)."""
+(:mod:`orbitsim.analysis.element_figure`); or, with ``--resonance P:Q``, a pair's resonant angles
+and period ratio (:mod:`orbitsim.analysis.resonance_figure`)."""
 
 from __future__ import annotations
 
@@ -29,10 +30,20 @@ MAX_LEGEND = 12
               help="Draw every body's osculating orbital elements (a, e, inc, Omega, omega, f, M) against "
                    "time, one panel each, instead; the run must have recorded them (output.elements: true). "
                    "Default figure: the trace's name with _elements.png. Example: --elements")
+@click.option("--resonance", default=None, metavar="P:Q",
+              help="Draw the P:Q resonant angles of two bodies (P lambda_out - Q lambda_in - (P-Q) varpi) and "
+                   "their period ratio against time, from the recorded elements (output.elements: true). "
+                   "Default figure: the trace's name with _resonance.png. Example: --resonance 2:1")
+@click.option("--pair", default=None, metavar="INNER,OUTER",
+              help="With --resonance: the two bodies (default: the only two with elements). Example: --pair b,c")
+@click.option("--view", type=click.Choice(["xy", "xz", "yz", "3d"]), default="xy", show_default=True,
+              help="The orbit panel's projection: a coordinate plane, or a 3-D view, so inclined systems are "
+                   "not squashed into x-y. Example: --view xz")
 @force_option()
 @reports_errors
-def command(trace: str, output: str | None, elements: bool, force: bool) -> None:
-    """Plot TRACE.h5: orbits projected on x-y, and |dE/E| against time on a log axis.
+def command(trace: str, output: str | None, elements: bool, resonance: str | None, pair: str | None,
+            view: str, force: bool) -> None:
+    """Plot TRACE.h5: orbits projected on x-y (or --view xz, yz, 3d), and |dE/E| against time on a log axis.
 
     With --elements: each body's a, e, inc, Omega, omega, f and M against time, about the
     primary the run recorded them for (heaviest body, Jacobi, or a named body).
@@ -42,15 +53,18 @@ def command(trace: str, output: str | None, elements: bool, force: bool) -> None
       orbitsim plot two_body_circular.h5
       orbitsim plot run.h5 -o run.pdf --force
       orbitsim plot kozai.h5 --elements
+      orbitsim plot resonance_capture.h5 --resonance 2:1
     """
     from orbitsim.io.trace import open_trace_summary
 
     stem = Path(trace).stem
-    default = Path(trace).with_name(f"{stem}_elements.png") if elements else Path(trace).with_suffix(".png")
+    spec = _check_resonance(resonance, pair, elements)
+    suffix = "_elements.png" if elements else "_resonance.png" if spec else ".png"
+    default = Path(trace).with_name(f"{stem}{suffix}")
     target = Path(output) if output is not None else default
     _check_figure_path(output or str(target), stem)  # before the trace is read
     summary = open_trace_summary(trace)  # checks the format before anything is drawn
-    if elements:
+    if elements or spec:
         from orbitsim.analysis.element_figure import check_elements
 
         check_elements(summary)  # no elements group: one line, before any drawing
@@ -60,8 +74,10 @@ def command(trace: str, output: str | None, elements: bool, force: bool) -> None
         fail(f"{target}: directory {target.parent} does not exist")
     if elements:
         _plot_elements(trace, summary, target)
+    elif spec:
+        _plot_resonance(trace, summary, target, spec, pair)
     else:
-        _draw(_read(trace, summary), summary["attrs"], target)
+        _draw(_read(trace, summary), summary["attrs"], target, view)
     click.echo(f"wrote {target}")
 
 
@@ -71,6 +87,36 @@ def _plot_elements(trace: str, summary: dict[str, Any], target: Path) -> None:
     data = read_elements(trace, summary, MAX_PLOT_SAMPLES, MAX_TRACKS)
     length, time_unit = _units(summary["attrs"])
     draw_elements(data, target, _title(summary["attrs"], target, time_unit), length, time_unit, MAX_LEGEND)
+
+
+def _check_resonance(resonance: str | None, pair: str | None, elements: bool) -> tuple[int, int] | None:
+    """The parsed P:Q, or None; a bad spec or a clash of options is one usage line."""
+    if resonance is None:
+        if pair is not None:
+            raise OneLineUsageError("--pair needs --resonance P:Q")
+        return None
+    if elements:
+        raise OneLineUsageError("--elements and --resonance draw different figures; give one")
+    from orbitsim.analysis.resonance_figure import parse_resonance
+
+    try:
+        return parse_resonance(resonance)
+    except ValueError as err:
+        raise OneLineUsageError(f"--resonance: {err}") from None
+
+
+def _plot_resonance(trace: str, summary: dict[str, Any], target: Path, spec: tuple[int, int],
+                    pair: str | None) -> None:
+    from orbitsim.analysis.element_figure import read_elements
+    from orbitsim.analysis.resonance_figure import draw_resonance, pick_pair
+
+    data = read_elements(trace, summary, MAX_PLOT_SAMPLES, MAX_TRACKS)
+    try:
+        columns = pick_pair(data["bodies"], data["elements"]["a"], pair)
+    except ValueError as err:
+        raise OneLineUsageError(f"{trace}: {err}") from None
+    _, time_unit = _units(summary["attrs"])
+    draw_resonance(data, spec, columns, target, _title(summary["attrs"], target, time_unit), time_unit)
 
 
 def figure_formats() -> list[str]:
@@ -111,9 +157,9 @@ def _read(path: str, summary: dict[str, Any]) -> dict[str, Any]:
                 rows = np.append(rows, n - 1)  # always show where the run ended
             bodies = f["positions"].shape[1]
             if bodies > MAX_TRACKS:
-                data["positions"] = f["positions"][n - 1 : n, :, :2]
+                data["positions"] = f["positions"][n - 1 : n, :, :]
             else:
-                data["positions"] = f["positions"][rows, :, :2]
+                data["positions"] = f["positions"][rows, :, :]
     return data
 
 
@@ -124,15 +170,17 @@ def _units(attrs: dict[str, Any]) -> tuple[str, str]:
     return (system.length, system.time) if system else ("length", "time")
 
 
-def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path) -> None:
+def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path, view: str = "xy") -> None:
     import matplotlib
 
     matplotlib.use("Agg")  # files only: no display needed, and no GUI toolkit imported
     import matplotlib.pyplot as plt
 
     length, time_unit = _units(attrs)
-    fig, (ax_orbit, ax_energy) = plt.subplots(1, 2, figsize=(12, 5.5), layout="constrained")
-    _draw_orbits(ax_orbit, data, length)
+    fig = plt.figure(figsize=(12, 5.5), layout="constrained")
+    ax_orbit = fig.add_subplot(1, 2, 1, projection="3d" if view == "3d" else None)
+    ax_energy = fig.add_subplot(1, 2, 2)
+    _draw_orbits(ax_orbit, data, length, view)
     _draw_energy(ax_energy, data, time_unit)
     fig.suptitle(_title(attrs, target, time_unit))
     fig.savefig(target, dpi=120)
@@ -147,25 +195,44 @@ def _title(attrs: dict[str, Any], target: Path, time_unit: str) -> str:
     return title if status == "complete" else f"{title} ({status})"
 
 
-def _draw_orbits(ax: Any, data: dict[str, Any], length: str) -> None:
+#: ``--view``: the coordinates the orbit panel shows.
+VIEW_AXES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2), "3d": (0, 1, 2)}
+
+
+def _draw_orbits(ax: Any, data: dict[str, Any], length: str, view: str = "xy") -> None:
+    axes = VIEW_AXES[view]
     pos = data["positions"]
-    ax.set_xlabel(f"x [{length}]")
-    ax.set_ylabel(f"y [{length}]")
+    for own, axis in zip("xyz", axes, strict=False):  # matplotlib's x, y (z) show the view's coordinates
+        getattr(ax, f"set_{own}label")(f"{'xyz'[axis]} [{length}]")
     if pos is None or pos.shape[0] == 0:
         ax.text(0.5, 0.5, "positions were not recorded", ha="center", va="center", transform=ax.transAxes)
         ax.set_title("orbits")
         return
     names = data["names"]
     if pos.shape[0] == 1:  # many bodies: one snapshot
-        ax.plot(pos[0, :, 0], pos[0, :, 1], ".", ms=1.5)
+        ax.plot(*(pos[0, :, a] for a in axes), ".", ms=1.5)
         ax.set_title(f"positions of {pos.shape[1]} bodies at the last sample")
     else:
         for i in range(pos.shape[1]):
-            ax.plot(pos[:, i, 0], pos[:, i, 1], lw=0.8, label=names[i] if i < MAX_LEGEND else None)
-        ax.set_title("orbits projected on x-y")
+            ax.plot(*(pos[:, i, a] for a in axes), lw=0.8, label=names[i] if i < MAX_LEGEND else None)
+        ax.set_title("orbits in 3-D" if view == "3d" else f"orbits projected on {view[0]}-{view[1]}")
         if len(names) <= MAX_LEGEND:
             ax.legend(loc="best", fontsize="small")
-    ax.set_aspect("equal", adjustable="datalim")
+    if view == "3d":
+        _cube(ax, pos)
+    else:
+        ax.set_aspect("equal", adjustable="datalim")
+
+
+def _cube(ax: Any, pos: Any) -> None:
+    """Equal scales on a 3-D axes (mplot3d has no equal aspect with ``datalim``): a cube around the data."""
+    import numpy as np
+
+    lo, hi = np.nanmin(pos, axis=(0, 1)), np.nanmax(pos, axis=(0, 1))
+    centre, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2, 1e-300)
+    for own, c in zip("xyz", centre, strict=True):
+        getattr(ax, f"set_{own}lim")(c - half, c + half)
+    ax.set_box_aspect((1, 1, 1))
 
 
 def _draw_energy(ax: Any, data: dict[str, Any], time_unit: str) -> None:
