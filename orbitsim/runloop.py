@@ -87,6 +87,7 @@ class RunLoop:
         self.max_err = 0.0
         self.energy_failure: tuple[int, float, float] | None = None  # step, time, energy of the first bad sample
         self.safe = False  # True where the state agrees with the samples written: a checkpoint may be taken
+        self.history = start.checkpoint.history if start is not None else ""  # `run --from` scheme/dt changes
         self.checkpoints = Checkpointer(scenario, sink, start, force)
         if start is not None:
             self._continue_from(start)
@@ -114,6 +115,8 @@ class RunLoop:
         self.safe = True
         with stopper.critical():
             self.sink.set_attrs(threads=int(self.sim.threads_used))  # known only once numba is set up
+            if self.history:  # where `run --from` changed the scheme or dt (orbitsim.checkpoint.switch)
+                self.sink.set_attrs(integrator_history=self.history)
             self.checkpoints.initial(self)
         stopper.in_chunks = True
         try:
@@ -141,6 +144,7 @@ class RunLoop:
 
         sc = self.scenario
         masses, pos, vel, radii = sc.masses, sc.positions, sc.velocities, sc.radii
+        t0 = self.start_point.checkpoint.t0 if self.start_point is not None else 0.0
         if self.start_point is not None:
             state = self.start_point.checkpoint.state
             pos, vel = state.pos.T, state.vel.T
@@ -151,10 +155,12 @@ class RunLoop:
         if sc.record_elements:
             primary = sc.elements_primary
             primary = sc.names.index(primary) if primary in sc.names else primary
-        sim = Simulation(masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.grid_dt, sc.G, sc.softening, 0.0,
+        sim = Simulation(masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.grid_dt, sc.G, sc.softening, t0,
                          threads, sc.run_settings, events=sc.events, radii=radii, elements=primary,
                          forces=scenario_forces(sc))
-        if self.start_point is not None:
+        if self.start_point is not None and self.start_point.rebuild:
+            sim.steps_done = self.start_point.checkpoint.steps_done  # a new scheme: its work is made fresh
+        elif self.start_point is not None:
             restore_state(sim, self.start_point.checkpoint.state)
         return sim
 

@@ -229,8 +229,10 @@ def test_refuses_another_integrator_or_scenario(tmp_path: Path) -> None:
         prepare_resume(tmp_path / "out.h5", scenario=sc.with_overrides(dt=0.02))
     assert prepare_resume(tmp_path / "out.h5", scenario=sc, integrator="kdk").start is not None  # an alias
     run_scenario(sc, tmp_path / "done.h5")
-    with pytest.raises(CheckpointError, match="cannot continue with leapfrog4"):
-        prepare_extension(tmp_path / "done.h5", steps=10, integrator="leapfrog4")
+    # Extending with another scheme is allowed (tests/test_run_from_switch.py), but not to an adaptive one.
+    assert prepare_extension(tmp_path / "done.h5", steps=10, integrator="leapfrog4").start.rebuild
+    with pytest.raises(CheckpointError, match="cannot switch to or from it"):
+        prepare_extension(tmp_path / "done.h5", t_end=100.0, integrator="ias15")
     with pytest.raises(CheckpointError, match="bodies differ"):
         prepare_extension(tmp_path / "done.h5", steps=10, scenario=sc.with_overrides(
             masses=sc.masses * 2))

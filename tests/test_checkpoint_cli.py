@@ -126,12 +126,13 @@ def test_run_from_extends_a_complete_run(tiny: Path, tmp_path: Path) -> None:
 def test_run_from_refusals(tiny: Path, tmp_path: Path) -> None:
     out = str(tmp_path / "out.h5")
     assert invoke("run", str(tiny), "-o", out, "-q")[0] == 0
-    code, _, err = invoke("run", "--from", out, "--steps", "10", "--dt", "0.1")
-    assert code == 2 and "settings are fixed: drop --dt" in err
+    code, _, err = invoke("run", "--from", out, "--steps", "10", "--every", "5")
+    assert code == 2 and "settings are fixed: drop --every" in err
     code, _, err = invoke("run", "--from", out)
     assert code == 2 and "--steps N (more steps) or --t-end T" in err
-    code, _, err = invoke("run", "--from", out, "--steps", "10", "--integrator", "rk4")
-    assert code == 2 and "cannot continue with rk4" in one_error_line(err)
+    # Another integrator is allowed now (tests/test_run_from_switch.py), but not an adaptive one.
+    code, _, err = invoke("run", "--from", out, "--steps", "10", "--integrator", "ias15")
+    assert code == 2 and "cannot switch to or from it" in one_error_line(err)
     code, _, err = invoke("run", "--from", str(tiny), "--steps", "10")
     assert code == 2 and "not an HDF5 file" in one_error_line(err)
     code, _, err = invoke("run")

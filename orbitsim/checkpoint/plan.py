@@ -13,6 +13,8 @@ Where a run's state can be found, newest first:
 Resuming always continues the scenario stored with the state. A scenario or integrator given
 on top must be the same, or the request is refused with a one-line :class:`CheckpointError`:
 another scheme's state cannot be restored, and another scenario would not be the same run.
+``run --from`` may continue a complete run with another integrator or dt; the new scheme then
+starts afresh from the final state (:mod:`orbitsim.checkpoint.switch`).
 """
 
 from __future__ import annotations
@@ -295,20 +297,22 @@ def _from_trace(output: Path, trace: TraceState, scenario: Scenario | None, inte
 
 def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_end: float | None = None,
                       output: str | os.PathLike | None = None, integrator: str | None = None,
-                      scenario: Scenario | None = None, force: bool = False) -> Continuation:
+                      scenario: Scenario | None = None, force: bool = False, dt: float | None = None,
+                      backward: bool = False) -> Continuation:
     """How to extend the complete run in ``source`` by ``steps`` more steps, or to ``t_end``.
 
     The extended run is the stored scenario with the longer duration, continued from the final
     state: its samples are those of one longer run with the same sampling rule (plus the old
     final sample when it was not on that rule's grid). ``output`` defaults to ``source``, which is
     then replaced, atomically, once the extension has finished; another existing file needs
-    ``force``.
+    ``force``. Another ``integrator`` or ``dt`` (``backward``: dt = -|dt|) continues the final state
+    with that scheme and step, and the trace records the change (:mod:`orbitsim.checkpoint.switch`).
 
     Raises
     ------
     CheckpointError
-        If ``source`` is not a complete trace with a final state, or a different integrator or
-        scenario (other than its duration) is asked for.
+        If ``source`` is not a complete trace with a final state, a different scenario (other
+        than its duration) is given, or a change of scheme or dt cannot be honoured.
     OutputError
         If ``output`` exists (and is not ``source``) without ``force``.
     """
@@ -319,11 +323,13 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
     if dst.is_dir() or not dst.parent.is_dir():
         raise OutputError(f"{dst}: not a file path in an existing directory")
     with hold_output(dst):  # refuses while another process writes the new output
-        return _plan_extension(src, dst, steps, t_end, integrator, scenario, force)
+        return _plan_extension(src, dst, steps, t_end, (integrator, dt, backward), scenario, force)
 
 
-def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None, integrator: str | None,
+def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None, change: tuple[Any, ...],
                     scenario: Scenario | None, force: bool) -> Continuation:
+    from orbitsim.checkpoint.switch import plan_switch, resolve_request
+
     trace = read_trace_state(src)
     status = trace.attrs.get("status")
     if status == "interrupted":
@@ -335,12 +341,12 @@ def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None
                               "bit for bit; run the longer scenario instead")
     stored = stored_scenario(str(trace.attrs["scenario"]), trace.checkpoint.scenario_sha256, src,
                              str(trace.attrs.get("scenario_source", "")))
-    _check_same(stored, src, scenario, integrator, ignore=("steps",))
+    _check_same(stored, src, scenario, None, ignore=("steps",))
     if trace.checkpoint.steps_done != stored.steps:
         raise CheckpointError(f"{src}: damaged trace (final state at step {trace.checkpoint.steps_done}, the run "
                               f"asked for {stored.steps})")
-    longer = stored.with_overrides(steps=stored.steps + steps) if steps is not None else stored.with_overrides(
-        t_end=t_end)
+    switch = plan_switch(src, stored, trace.checkpoint, *resolve_request(stored, *change), steps, t_end)
+    longer = switch.scenario
     if longer.steps <= stored.steps:
         raise CheckpointError(f"{src}: --t-end {t_end:g} is not past the run's end (t = {stored.end_time:.10g})")
     in_place = dst.exists() and dst.resolve() == src.resolve()
@@ -348,5 +354,6 @@ def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None
         raise OutputError(f"{dst}: output file already exists; use --force to overwrite it")
     check_side_files(dst, force)
     remove_side_files(dst)
-    start = RunStart(trace.checkpoint, source_trace=src, overwrite=in_place or force, resumes=trace.checkpoint.resumes)
+    start = RunStart(switch.checkpoint, source_trace=src, overwrite=in_place or force,
+                     resumes=trace.checkpoint.resumes, rebuild=switch.rebuild)
     return Continuation(dst, longer, start)

@@ -63,7 +63,7 @@ class Checkpointer:
             resumes=self.resumes, force=self.force, E0=math.nan if loop.e0 is None else loop.e0,
             energy_scale=loop.scale,
             max_abs_energy_error=loop.max_err if loop.samples else math.nan, last_sample_time=loop.last_time,
-            wall_time_s=loop.wall())
+            wall_time_s=loop.wall(), t0=float(loop.sim.t0), history=loop.history)
 
     def kept(self) -> Checkpoint | None:
         """The newest state known to agree with the samples: on disk, or the one the run started from."""

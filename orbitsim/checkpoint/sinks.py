@@ -49,6 +49,9 @@ class RunStart:
     source_trace: Path | None = None
     overwrite: bool = True
     resumes: int = 0
+    # `run --from` with another integrator or dt: the state is the inertial pos and vel only, and
+    # the new scheme builds its own work and accelerations from them (orbitsim.checkpoint.switch).
+    rebuild: bool = False
 
 
 class StreamSink:

@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "validate": ("validate", "Check scenario files without running them."),
     "list": ("listing", "List integrators or bundled scenarios."),
     "info": ("info", "Show what is in an HDF5 trace."),
+    "export": ("export", "Export a trace as a REBOUND file, a scenario or CSV."),
     "plot": ("plot", "Plot orbits and |dE/E| from a trace."),
     "animate": ("animate", "Render a movie (MP4 or GIF) of a scenario or a trace."),
     "compare": ("compare", "Cross-check orbitsim against REBOUND on a scenario."),

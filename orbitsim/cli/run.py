@@ -31,7 +31,7 @@ _OPTION_FOR_KEY = {"integrator": "--integrator", "dt": "--dt", "steps": "--steps
 #: follow (the bundled pythagorean problem with a fixed-dt scheme) or a scheme that drifts (explicit Euler).
 UNTRUSTWORTHY_ENERGY_ERROR = 0.01
 #: Options that would change what an extended run computes (``--from`` keeps the stored ones).
-_FIXED_BY_FROM = ("dt", "every", "interval", "positions")
+_FIXED_BY_FROM = ("every", "interval", "positions")
 
 
 @click.command("run")
@@ -42,8 +42,13 @@ _FIXED_BY_FROM = ("dt", "every", "interval", "positions")
               help="Override the integrator (a name or alias from `orbitsim list integrators`). "
                    "Example: --integrator leapfrog4")
 @click.option("--dt", type=FINITE_POSITIVE, default=None,
-              help="Override the timestep (> 0). With a file that gives t_end the step count is "
-                   "re-derived; with steps it is kept. Example: --dt 0.001")
+              help="Override the timestep (> 0; --backward makes it negative). With a file that gives t_end the "
+                   "step count is re-derived; with steps it is kept. With --from, the run continues with this step "
+                   "from its final state. Example: --dt 0.001")
+@click.option("--backward", is_flag=True, default=False,
+              help="Run time backwards: dt becomes -|dt| and t_end -|t_end| (schemes that can step backwards: "
+                   "`orbitsim list integrators`). With --from, the run continues backwards from its final state. "
+                   "Example: --from out.h5 --backward --steps 1000")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="Override the number of whole steps (replaces t_end). Example: --steps 20000")
 @click.option("--t-end", "t_end", type=FINITE_POSITIVE, default=None,
@@ -64,13 +69,14 @@ _FIXED_BY_FROM = ("dt", "every", "interval", "positions")
                    "output.checkpoint.seconds). Example: --checkpoint-seconds 600")
 @click.option("--from", "from_trace", metavar="TRACE.h5", default=None,
               help="Extend the complete run in TRACE.h5 from its final state, bit for bit as one longer run: "
-                   "--steps N more steps, or to --t-end T. Replaces TRACE.h5 (atomically, once done) unless "
-                   "-o names another file. Example: --from out.h5 --steps 100000")
+                   "--steps N more steps, or to --t-end T; with --integrator, --dt or --backward it continues with "
+                   "that scheme or step (the trace records the change). Replaces TRACE.h5 (atomically, once done) "
+                   "unless -o names another file. Example: --from out.h5 --steps 100000")
 @threads_option()
 @force_option()
 @quiet_option()
 @reports_errors
-def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | None,
+def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | None, backward: bool,
             steps: int | None, t_end: float | None, every: int | None, interval: float | None,
             positions: bool | None, checkpoint_every: int | None, checkpoint_seconds: float | None,
             from_trace: str | None, threads: int | None, force: bool, quiet: bool) -> None:
@@ -99,26 +105,41 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
       orbitsim run plummer_1k --steps 100 --every 10 --force -q
       orbitsim run long.yaml -o long.h5 --checkpoint-seconds 600
       orbitsim run --from long.h5 --steps 50000
+      orbitsim run --from long.h5 --integrator wisdom_holman --dt 0.05 --steps 50000
+      orbitsim run two_body_circular --backward --t-end 10
     """
-    from orbitsim.scenario import load_scenario
-
     for first, second in (("steps", "t_end"), ("every", "interval")):
         if locals()[first] is not None and locals()[second] is not None:
             raise click.UsageError(f"give only one of --{first} or --{second.replace('_', '-')}")
     checkpoints = {"checkpoint_every": checkpoint_every, "checkpoint_seconds": checkpoint_seconds}
     if from_trace is not None:
-        fixed = {"dt": dt, "every": every, "interval": interval, "positions": positions}
-        _extend(from_trace, scenario, output, integrator, steps, t_end, checkpoints, threads, force, quiet, fixed)
+        fixed = {"every": every, "interval": interval, "positions": positions}
+        change = {"integrator": integrator, "dt": dt, "backward": backward}
+        _extend(from_trace, scenario, output, change, steps, t_end, checkpoints, threads, force, quiet, fixed)
         return
     if scenario is None:
         raise click.UsageError("missing argument 'SCENARIO' (or give --from TRACE.h5 to extend a run)")
-    loaded = load_scenario(scenario)
+    loaded = _rebound_or_yaml(scenario, steps, t_end)
     overrides = {"integrator": integrator, "dt": dt, "steps": steps, "t_end": t_end, "every": every,
                  "interval": interval, "record_positions": positions, **checkpoints}
     chosen = _apply_overrides(loaded, overrides)
+    if backward:
+        chosen = _backward(chosen)
     if output is not None:
         check_trace_output(output, chosen.name)
     execute(chosen, output, force=force, threads=threads, quiet=quiet)
+
+
+def _rebound_or_yaml(scenario: str, steps: int | None, t_end: float | None) -> Any:
+    """``run sim.bin``: a REBOUND file (known by its first bytes) is a scenario of its own, run for
+    --steps or --t-end with its integrator and dt; anything else is a YAML file or a bundled name."""
+    from orbitsim.io.rebound_file import is_rebound_file
+    from orbitsim.scenario import load_scenario
+    from orbitsim.scenario.rebound_bodies import rebound_scenario
+
+    if is_rebound_file(scenario):
+        return rebound_scenario(scenario, steps=steps, t_end=t_end)
+    return load_scenario(scenario)
 
 
 def execute(scenario: Any, output: Any, *, force: bool, threads: int | None, quiet: bool, start: Any = None) -> None:
@@ -138,10 +159,11 @@ def execute(scenario: Any, output: Any, *, force: bool, threads: int | None, qui
     _report(summary, scenario, quiet)
 
 
-def _extend(source: str, scenario: str | None, output: str | None, integrator: str | None, steps: int | None,
+def _extend(source: str, scenario: str | None, output: str | None, change: dict[str, Any], steps: int | None,
             t_end: float | None, checkpoints: dict[str, Any], threads: int | None, force: bool, quiet: bool,
             fixed: dict[str, Any]) -> None:
-    """``run --from``: the stored scenario, longer, continued from the trace's final state."""
+    """``run --from``: the stored scenario, longer, continued from the trace's final state (with the
+    integrator, dt or direction ``change`` asks for: :mod:`orbitsim.checkpoint.switch`)."""
     from orbitsim.checkpoint import prepare_extension
     from orbitsim.scenario import load_scenario
 
@@ -156,10 +178,24 @@ def _extend(source: str, scenario: str | None, output: str | None, integrator: s
     given = load_scenario(scenario) if scenario is not None else None
     target = Path(output) if output is not None else Path(source)
     with hold_output(target):  # from the first look at its files to the last rename
-        plan = prepare_extension(source, steps=steps, t_end=t_end, output=output, integrator=integrator,
-                                 scenario=given, force=force)
+        plan = prepare_extension(source, steps=steps, t_end=t_end, output=output, scenario=given, force=force,
+                                 **change)
         chosen = _apply_overrides(plan.scenario, checkpoints)
         execute(chosen, plan.output, force=force, threads=threads, quiet=quiet, start=plan.start)
+
+
+def _backward(scenario: Any) -> Any:
+    """``--backward``: the scenario with dt = -|dt| and t_end = -|t_end| (the same number of steps,
+    towards earlier times); a scheme that cannot step backwards is refused by the scenario's check."""
+    from orbitsim.scenario import ScenarioError
+
+    changes: dict[str, Any] = {"dt": -abs(scenario.dt)}
+    if scenario.t_end is not None:
+        changes["t_end"] = -abs(scenario.t_end)
+    try:
+        return scenario.with_overrides(**changes)
+    except ScenarioError as err:
+        fail(f"--backward: {err.reason}")  # one line, exit 2
 
 
 def _check_extension_output(source: str, output: str | None) -> None:

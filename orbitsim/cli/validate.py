@@ -84,5 +84,7 @@ def _describe(spec: str, scenario: object, size: int) -> None:
     estimate = estimate_time(s)
     if estimate is not None:
         click.echo(f"  time: {estimate.describe()}")
+    for line in getattr(s, "input_notes", ()):
+        click.echo(f"  input: {line}")
     for note in s.notes():
         click.echo(f"  note: {note}")

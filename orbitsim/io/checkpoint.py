@@ -153,6 +153,11 @@ class Checkpoint:
     max_abs_energy_error: float = float("nan")
     last_sample_time: float = float("nan")
     wall_time_s: float = 0.0
+    # Time of step 0 (a sample at step n is at t0 + n * dt) and the JSON list of scheme or dt
+    # changes made by `run --from` (orbitsim.checkpoint.switch): a run that changed its dt
+    # keeps counting steps, so its clock needs both to continue, resumed or extended.
+    t0: float = 0.0
+    history: str = ""
     written_at: str = ""
     writer: str = ""
 
@@ -187,6 +192,8 @@ def write_checkpoint_group(group: h5py.Group, ckpt: Checkpoint) -> None:
         writer_pid=os.getpid(), writer_host=socket.gethostname(), orbitsim_version=__version__)
     if ckpt.scenario:
         attrs["scenario"] = ckpt.scenario
+    if ckpt.t0 != 0.0 or ckpt.history:  # absent in every run that never switched: old files read the same
+        attrs.update(t0=float(ckpt.t0), history=ckpt.history)
     for key, value in attrs.items():
         group.attrs[key] = value
 
@@ -217,6 +224,7 @@ def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "") -> 
             force=bool(attrs["force"]), E0=float(attrs["E0"]), energy_scale=float(attrs.get("energy_scale", np.nan)),
             max_abs_energy_error=float(attrs["max_abs_energy_error"]),
             last_sample_time=float(attrs["last_sample_time"]), wall_time_s=float(attrs["wall_time_s"]),
+            t0=float(attrs.get("t0", 0.0)), history=str(attrs.get("history", "")),
             written_at=str(attrs.get("written_at", "")),
             writer=f"pid {attrs.get('writer_pid', '?')} on {attrs.get('writer_host', '?')}", **counters)
         expected = str(attrs["state_sha256"])

@@ -15,14 +15,17 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.scenario.element_input import ELEMENT_ONLY_KEYS, elements_state
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import Fields, describe, join_path
+from orbitsim.scenario.frames import AXES, rotate
+from orbitsim.scenario.quantities import ANGLE_UNITS, QuantityReader
 
 __all__ = ["BodySet", "available_memory", "check_coincident", "read_bodies", "shift_to_barycentre"]
 
 CARTESIAN_KEYS = ("name", "m", "x", "v", "r")
-ELEMENT_KEYS = ("name", "m", "primary", "a", "e", "inc", "Omega", "omega", "M", "f", "r")
-EPHEMERIS_KEYS = ("source", "epoch", "jd", "bodies")
+ELEMENT_KEYS = ("name", "m", *ELEMENT_ONLY_KEYS, "r")
+EPHEMERIS_KEYS = ("source", "epoch", "jd", "bodies", "frame")
 PLUMMER_KEYS = ("kind", "n", "seed", "total_mass", "scale_radius", "prefix")
 DISC_KEYS = ("kind", "n", "seed", "central_mass", "r_min", "r_max", "e_max", "inc_max", "star", "prefix")
 GENERATOR_KINDS = {"plummer": PLUMMER_KEYS, "disc": DISC_KEYS}
@@ -48,6 +51,12 @@ class BodySet:
     velocities: list[np.ndarray] = field(default_factory=list)
     origins: list[str] = field(default_factory=list)
     radii: dict[int, float] = field(default_factory=dict)
+    #: Reads numbers with units and angles in the scenario's ``angles`` unit.
+    reader: QuantityReader = field(default_factory=lambda: QuantityReader("nbody"))
+    #: The plane of the scenario's x-y axes: the ephemeris's ``frame``, else the ecliptic.
+    axes: str = "ecliptic"
+    #: What the input meant, one line each, for ``orbitsim validate`` (angle unit, frames).
+    notes: list[str] = field(default_factory=list)
     _index: dict[str, int] = field(default_factory=dict)
 
     def add(self, names: list[str], m: Any, x: Any, v: Any, origins: list[str], name_keys: list[str]) -> None:
@@ -94,7 +103,10 @@ class BodySet:
 
 def read_bodies(doc: Fields, G: float, units: str) -> BodySet:
     """All bodies of a document, in source order ``ephemeris``, ``generator``, ``bodies``."""
-    bodies = BodySet()
+    from orbitsim.units import UNIT_SYSTEMS
+
+    angles = doc.string("angles", "deg", choices=ANGLE_UNITS, fold_case=True)
+    bodies = BodySet(reader=QuantityReader(units, angles, own_G=G != UNIT_SYSTEMS[units].G))
     if doc.has("ephemeris"):
         _read_ephemeris(Fields(doc.raw("ephemeris"), "ephemeris", EPHEMERIS_KEYS), G, units, bodies)
     if doc.has("generator"):
@@ -126,66 +138,33 @@ def _read_body(item: Any, path: str, G: float, bodies: BodySet) -> None:
     """One entry of ``bodies``: cartesian ``{name, m, x, v}`` or orbital elements."""
     keys = set(item) if isinstance(item, dict) else set()
     cartesian = bool(keys & {"x", "v"})
-    elements = bool(keys & {"primary", "a", "e", "inc", "Omega", "omega", "M", "f"})
+    elements = bool(keys & set(ELEMENT_ONLY_KEYS))
     if cartesian and elements:
         raise ScenarioError("give either x and v (cartesian) or primary and orbital elements, not both",
                             key=path)
     body = Fields(item, path, ELEMENT_KEYS if elements else CARTESIAN_KEYS, "body")
     name = _body_name(body)
-    m = body.number("m")
+    m = bodies.reader.number(body.raw("m"), body.key("m"), "mass")
     if m < 0.0:
         raise body.error("m", f"mass must be >= 0, got {body.raw('m')}")
     if elements:
-        x, v = _from_elements(body, m, G, bodies)
+        x, v = elements_state(body, m, G, bodies)
     elif not cartesian:
         raise ScenarioError("a body needs x and v (cartesian) or primary and a (orbital elements)", key=path)
     else:
-        x, v = body.vector3("x"), body.vector3("v")
-    radius = body.number("r", None, minimum=0.0)
+        x, v = _vector(body, "x", "length", bodies.reader), _vector(body, "v", "speed", bodies.reader)
+    radius = bodies.reader.number(body.raw("r"), body.key("r"), "length", minimum=0.0) if body.has("r") else None
     if radius is not None:
         bodies.radii[len(bodies.names)] = radius
     bodies.add([name], [m], x, v, [path], [body.key("name")])
 
 
-@np.errstate(all="ignore")  # an overflow is reported as an error naming the key, not as a RuntimeWarning
-def _from_elements(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[np.ndarray, np.ndarray]:
-    """Barycentric-frame-free state: the primary's state plus the relative Keplerian state."""
-    from orbitsim.initial_conditions.elements import elements_to_cartesian
-
-    primary_name = body.string("primary")
-    primary = bodies.find(primary_name)
-    if primary is None:
-        known = ", ".join(bodies.names[:12]) or "none yet"
-        raise body.error("primary", f"unknown primary {primary_name!r}: it must be a body defined before this "
-                         f"one (known: {known})")
-    m_primary, x_primary, v_primary = primary
-    gm = G * (m_primary + m)
-    if not math.isfinite(gm):
-        raise body.error("m", f"G (m_primary + m) = {G:g} * ({m_primary:g} + {m:g}) overflows float64: use units in "
-                         "which the masses are smaller")
-    if gm <= 0.0:
-        raise body.error("m", f"{primary_name!r} and this body are both massless: orbital elements need "
-                         "G (m_primary + m) > 0")
-    a = body.number("a")
-    e = body.number("e", 0.0, minimum=0.0)
-    if e == 1.0:
-        raise body.error("e", "parabolic orbits (e = 1) are not supported; use e < 1 or e > 1")
-    if (e < 1.0) != (a > 0.0):
-        sign = "positive for an elliptic orbit (e < 1)" if e < 1.0 else "negative for a hyperbolic orbit (e > 1)"
-        raise body.error("a", f"a must be {sign}, got a = {a:g} with e = {e:g}")
-    angles = {k: body.number(k, 0.0) for k in ("inc", "Omega", "omega")}
-    anomaly = body.one_of("M", "f")
-    try:
-        r, v = elements_to_cartesian(gm, a, e, angles["inc"], angles["Omega"], angles["omega"],
-                                     **{anomaly: body.number(anomaly)})
-    except ValueError as err:
-        raise ScenarioError(str(err), key=body.key(anomaly)) from None
-    except ArithmeticError:  # e.g. a = 1e-300: the state is not representable, reported below
-        r = v = np.array([math.nan])
-    if not (np.isfinite(r).all() and np.isfinite(v).all()):
-        raise body.error("a", f"the orbit's position or velocity overflows float64 (G (m_primary + m) = {gm:g}, "
-                         f"a = {a:g}): use units in which these numbers are closer to 1")
-    return x_primary + r, v_primary + v
+def _vector(body: Fields, name: str, kind: str, reader: QuantityReader) -> list[float]:
+    """A list of three numbers, each of which may carry a unit (``["1 au", 0, 0]``)."""
+    value = body.raw(name)
+    if not isinstance(value, list | tuple) or len(value) != 3:
+        raise body.error(name, f"expected a list of 3 numbers [x, y, z], got {describe(value)}")
+    return [reader.number(item, join_path(body.key(name), i), kind) for i, item in enumerate(value)]
 
 
 def _ephemeris_factors(units: str, key: str) -> tuple[float, float]:
@@ -204,6 +183,11 @@ def _read_ephemeris(eph: Fields, G: float, units: str, bodies: BodySet) -> None:
     from orbitsim.initial_conditions.ephemeris import EPHEMERIS_BODIES, de421_states, epoch_to_jd
 
     eph.string("source", "de421", choices=["de421"])
+    # DE421 is equatorial (ICRF); frame: ecliptic turns it, and so the whole scenario, to the J2000 ecliptic.
+    frame = eph.string("frame", "equatorial", choices=AXES, fold_case=True)
+    bodies.axes = frame
+    bodies.notes.append(f"axes: the {'J2000 mean ecliptic' if frame == 'ecliptic' else 'ICRF equator'} "
+                        f"(ephemeris.frame: {frame}); elements without a frame refer to it")
     length, time = _ephemeris_factors(units, "units")
     when = eph.one_of("epoch", "jd")
     if when == "epoch":
@@ -228,7 +212,8 @@ def _read_ephemeris(eph: Fields, G: float, units: str, bodies: BodySet) -> None:
         raise eph.error(when, str(err)) from None
     gm = states.gm * length**3 / time**2
     keys = [join_path(eph.key("bodies"), i) for i in range(len(names))]
-    bodies.add(list(names), gm / G, states.positions * length, states.velocities * (length / time), keys, keys)
+    x, v = rotate(states.positions, "equatorial", frame), rotate(states.velocities, "equatorial", frame)
+    bodies.add(list(names), gm / G, x * length, v * (length / time), keys, keys)
 
 
 def available_memory() -> int:
@@ -282,7 +267,9 @@ def _read_generator(spec: Any, path: str, G: float, bodies: BodySet) -> None:
         e_max = gen.number("e_max", 0.0, minimum=0.0)
         if e_max >= 1.0:
             raise gen.error("e_max", f"must be < 1 (bound orbits), got {e_max:g}")
-        inc_max = gen.number("inc_max", 0.0, minimum=0.0)
+        inc_max = bodies.reader.angle(gen.raw("inc_max"), gen.key("inc_max")) if gen.has("inc_max") else 0.0
+        if inc_max < 0.0:
+            raise gen.error("inc_max", f"must be >= 0, got {gen.raw('inc_max')} ({bodies.reader.angle_words})")
         if inc_max > 180.0:
             raise gen.error("inc_max", f"must be <= 180 degrees, got {inc_max:g}")
         r_min, r_max = gen.number("r_min", positive=True), gen.number("r_max", positive=True)

@@ -10,17 +10,20 @@ from pathlib import Path
 from typing import Any
 
 from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_barycentre
+from orbitsim.scenario.direction import check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.events import read_events
 from orbitsim.scenario.fields import Fields, describe
 from orbitsim.scenario.model import DEFAULT_SAMPLES, FRAMES, Scenario, resolve_steps
+from orbitsim.scenario.rebound_bodies import expand_rebound_bodies, uses_rebound_file
 from orbitsim.scenario.timing import adaptive_integrator, resolve_grid
 from orbitsim.scenario.yamlio import parse_yaml
 
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "steps", "t_end", "output", "softening",
-            "frame", "bodies", "ephemeris", "generator", "events", "forces")
+            "frame", "bodies", "ephemeris", "generator", "events", "forces",
+            "angles")  # angles: read with the bodies (orbitsim.scenario.bodies)
 OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary")
 CHECKPOINT_KEYS = ("every", "seconds")
 #: A YAML file in the config directory is a scenario when one of these starts a line: the same
@@ -159,11 +162,13 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
 
     if doc is None:
         raise ScenarioError("the scenario is empty: it needs at least integrator, dt, steps or t_end, and bodies")
+    if uses_rebound_file(doc):  # bodies: {rebound: FILE}: explicit bodies, and G, dt, integrator from the file
+        doc = expand_rebound_bodies(doc, source)
     top = Fields(doc, "", TOP_KEYS, "scenario")
     units = top.string("units", "nbody", choices=list(UNIT_SYSTEMS), fold_case=True)
     G = top.number("G", UNIT_SYSTEMS[units].G, positive=True)
     integrator, settings = _read_integrator(top)
-    dt = top.number("dt", positive=True)
+    dt = check_dt(top.number("dt"))  # < 0 runs backwards (orbitsim.scenario.direction)
     output = Fields(top.raw("output", {}), "output", OUTPUT_KEYS, "output section")
     output.one_of("every", "interval", required=False)
     t_end = None
@@ -172,7 +177,7 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     elif top.one_of("steps", "t_end") == "steps":
         steps = top.integer("steps", minimum=1, steps=True)
     else:
-        t_end = top.number("t_end", positive=True)
+        t_end = check_t_end(top.number("t_end"), dt)  # negative with a negative dt
         steps = resolve_steps(t_end, dt)[0]
     softening = top.number("softening", 0.0, minimum=0.0)
     frame = top.string("frame", "as_given", choices=FRAMES)
@@ -202,6 +207,7 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                         events=events, record_elements=elements, elements_primary=primary,
                         forces=top.raw("forces", ()))
     scenario.remember_origins(bodies.origins)
+    scenario.remember_input(bodies.notes)  # angle unit and axes, for `orbitsim validate`
     return scenario
 
 

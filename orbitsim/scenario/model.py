@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from orbitsim.scenario.bodies import check_coincident, check_finite_state
+from orbitsim.scenario.direction import check_direction, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_count, check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
@@ -157,6 +158,7 @@ class Scenario:
         check_coincident(self.positions, self.names, None, self.softening)
         self._validate_events()
         self._validate_forces()
+        check_direction(self.integrator, self.dt, self.events, self.forces)  # dt < 0: backwards, where possible
 
     def _validate_forces(self) -> None:
         """Resolve the forces (again: a new integrator or new bodies may not fit them) and check that
@@ -224,7 +226,7 @@ class Scenario:
                 raise ScenarioError(str(err), key="bodies") from None
 
     def _validate_time(self) -> None:
-        self._set("dt", check_number(self.dt, "dt", positive=True))
+        self._set("dt", check_dt(self.dt))  # < 0 runs backwards (orbitsim.scenario.direction)
         self._set("steps", check_count(self.steps, "steps"))
         if self.adaptive:
             self._validate_adaptive_time()
@@ -233,7 +235,7 @@ class Scenario:
             raise ScenarioError(f"steps * dt = {self.steps} * {self.dt:g} overflows float64: use a smaller dt "
                                 "(or other units)", key="dt")
         if self.t_end is not None:
-            self._set("t_end", check_number(self.t_end, "t_end", positive=True))
+            self._set("t_end", check_t_end(self.t_end, self.dt))
             expected, _ = resolve_steps(self.t_end, self.dt)
             if expected != self.steps:
                 raise ScenarioError(f"steps = {self.steps} disagrees with t_end = {self.t_end:g} / dt = "
@@ -244,8 +246,8 @@ class Scenario:
             self._set("every", check_count(self.every, "output.every"))
         if self.interval is not None:
             self._set("interval", check_number(self.interval, "output.interval", positive=True))
-            if not self.interval / self.dt <= MAX_STEPS:  # sample numbers become steps of dt
-                raise steps_limit_error(f"output.interval / dt = {self.interval / self.dt:.3g} steps",
+            if not self.interval / abs(self.dt) <= MAX_STEPS:  # sample numbers become steps of dt
+                raise steps_limit_error(f"output.interval / |dt| = {self.interval / abs(self.dt):.3g} steps",
                                         "output.interval", "sample more often")
         self._validate_checkpoint()
 
@@ -336,7 +338,7 @@ class Scenario:
         if self.adaptive:
             return EveryPlan(self.steps, 1)  # the grid is the output grid
         if self.interval is not None:
-            return IntervalPlan(self.steps, self.dt, self.interval)
+            return IntervalPlan(self.steps, abs(self.dt), self.interval)  # backwards: the same steps
         return EveryPlan(self.steps, int(self.sample_every))
 
     def sample_steps(self) -> np.ndarray:
@@ -356,7 +358,7 @@ class Scenario:
             notes.append(f"t_end = {self.t_end:.10g} is not a whole number of steps of dt = {self.dt:g}: the run "
                          f"takes {self.steps} whole steps and ends at t = {self.end_time:.10g} "
                          "(a step is never shortened)")
-        if self.interval is not None and self.interval < self.dt:
+        if self.interval is not None and self.interval < abs(self.dt):
             notes.append(f"output.interval = {self.interval:g} is shorter than dt = {self.dt:g}: every step "
                          "is sampled")
         return notes
@@ -416,6 +418,15 @@ class Scenario:
         """
         if origins is not None and len(origins) == self.n_bodies:
             self._set("_origins", tuple(origins))
+
+    def remember_input(self, notes: Any) -> None:
+        """Record what the file's numbers meant (angle unit, axes) for ``validate``; not serialised."""
+        self._set("_input_notes", tuple(notes))
+
+    @property
+    def input_notes(self) -> tuple[str, ...]:
+        """Lines on how the file's input was read (``angles in degrees (angles: deg)``); may be empty."""
+        return self.__dict__.get("_input_notes", ())
 
     @property
     def origins(self) -> tuple[str, ...] | None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from orbitsim.scenario.direction import check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, unknown_key_error
 from orbitsim.scenario.timing import resolve_steps
@@ -73,14 +74,14 @@ def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
     if _adaptive_after(scenario, changes):
         _resolve_adaptive_time(scenario, changes)
         return
-    dt = check_number(changes.get("dt", scenario.dt), "dt", positive=True)
+    dt = check_dt(changes.get("dt", scenario.dt))
     if "steps" in changes:
         changes["t_end"] = None
         return
     t_end = changes.get("t_end", scenario.t_end)
     blame = "t_end" if "t_end" in changes or "dt" not in changes else "dt"  # a file's t_end with a new dt
     if t_end is not None:
-        t_end = check_number(t_end, "t_end", positive=True)
+        t_end = check_t_end(t_end, dt)
         changes["t_end"] = t_end
         try:
             changes["steps"] = resolve_steps(t_end, dt)[0]

@@ -1,8 +1,8 @@
 """How long a scenario runs: the whole steps of ``dt`` that fit in ``t_end``.
 
 A step is never shortened, so ``t_end`` resolves to the largest step count with
-``steps * dt <= t_end``, except that a ``t_end`` a whole number of steps long up to round-off
-means exactly that many steps.
+``steps * dt <= t_end`` (``>=`` for a backward run, ``dt < 0``: the same count as for ``-dt``),
+except that a ``t_end`` a whole number of steps long up to round-off means exactly that many steps.
 
 Every step count of a scenario (``steps``, ``t_end / dt``, ``output.every``,
 ``output.interval / dt``, ``output.checkpoint.every``) is at most :data:`MAX_STEPS`.
@@ -40,6 +40,8 @@ def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
     ScenarioError
         When not even one step fits, or more than :data:`MAX_STEPS` do.
     """
+    if dt < 0.0:  # backwards (orbitsim.scenario.direction): the mirror image of the forward count
+        t_end, dt = -t_end, -dt
     ratio = t_end / dt
     if not ratio <= 2.0 * MAX_STEPS:  # also inf (1e308 / 0.01) and nan, which round() cannot take
         raise steps_limit_error(f"t_end / dt = {ratio:.3g} steps", "t_end")

@@ -1,0 +1,237 @@
+"""A trace's state or time series in other formats: a REBOUND file, a scenario, CSV.
+
+* :func:`export_rebound`: one sample's state as a REBOUND snapshot (:mod:`orbitsim.io.rebound_file`),
+  bits unchanged.
+* :func:`export_scenario`: the stored (fully resolved) scenario with its initial state replaced by
+  one sample's, for the steps left to the original end. Same integrator, settings, dt, units and
+  sampling, floats written as their shortest round-trip text, so for a fixed-dt scheme the new run
+  from a sample continues the original bit for bit (the run's clock restarts at 0: forces in
+  orbitsim do not depend on time).
+* :func:`export_csv`: the per-sample series, and with ``positions`` every body's state in long format.
+
+Every file is written to a temporary name beside its target and renamed once complete, so a failure
+leaves nothing half-written (:func:`write_atomically`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from orbitsim.io.schema import ELEMENTS, TraceError
+from orbitsim.io.trace_reader import open_trace
+
+__all__ = ["SampleState", "export_csv", "export_rebound", "export_scenario", "positions_csv_path", "read_sample",
+           "write_atomically"]
+
+#: Samples per block when streaming a CSV: bounded memory for any trace length.
+CSV_BLOCK = 4096
+#: ``%.17g`` prints every float64 so that it reads back to the same bits.
+_EXACT = "%.17g"
+
+
+@dataclass(frozen=True, eq=False)
+class SampleState:
+    """One sample of a trace: the state, where it lies in the run, and the run's attributes."""
+
+    index: int
+    step: int
+    time: float
+    names: tuple[str, ...]
+    masses: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    attrs: dict[str, Any]
+
+
+def read_sample(path: str | os.PathLike[str], sample: int = -1) -> SampleState:
+    """Sample ``sample`` (Python indexing: -1 is the last) of a trace that recorded positions.
+
+    Raises
+    ------
+    TraceError
+        Naming the trace: no positions recorded, no samples, an index out of range, or a body
+        that was merged or removed by then (its state is NaN).
+    """
+    from orbitsim.io.schema import py_value
+
+    name = os.fspath(path)
+    with open_trace(name) as f:
+        count = int(f["time"].shape[0])
+        if "positions" not in f:
+            raise TraceError(f"{name}: the run did not record positions (output.positions: false), so it holds no "
+                             "state to export; rerun with --positions")
+        if count == 0:
+            raise TraceError(f"{name}: the trace holds no samples")
+        if not -count <= sample < count:
+            raise TraceError(f"{name}: sample {sample} is out of range: the trace holds {count} samples "
+                             f"(0 to {count - 1}, or -1 for the last)")
+        k = sample % count
+        x, v = f["positions"][k], f["velocities"][k]
+        state = SampleState(index=k, step=int(f["step"][k]), time=float(f["time"][k]),
+                            names=tuple(f["bodies/names"].asstr()[()]), masses=f["bodies/masses"][()],
+                            positions=x, velocities=v, attrs={a: py_value(b) for a, b in f.attrs.items()})
+    lost = [n for n, row, vel in zip(state.names, x, v, strict=True) if not (np.all(np.isfinite(row))
+                                                                             and np.all(np.isfinite(vel)))]
+    if lost:
+        raise TraceError(f"{name}: sample {k} has no finite state for {lost[0]!r} (merged, removed or diverged "
+                         "by then); export an earlier sample")
+    return state
+
+
+def stored_scenario_of(state: SampleState, where: str) -> Any:
+    """The fully resolved scenario the trace stores (checked against its SHA-256)."""
+    from orbitsim.checkpoint.plan import stored_scenario
+
+    text = state.attrs.get("scenario")
+    if not isinstance(text, str) or not text:
+        raise TraceError(f"{where}: the trace stores no scenario")
+    return stored_scenario(text, str(state.attrs.get("scenario_sha256", "")), Path(where))
+
+
+def export_rebound(trace: str | os.PathLike[str], output: str | os.PathLike[str], sample: int = -1) -> str:
+    """Write sample ``sample`` of ``trace`` as a REBOUND file; returns a note ('' when none)."""
+    from orbitsim.io.rebound_file import write_rebound_file
+
+    state = read_sample(trace, sample)
+    scenario = stored_scenario_of(state, os.fspath(trace))
+    return write_rebound_file(output, state.masses, state.positions, state.velocities, G=scenario.G,
+                              t=state.time, dt=scenario.dt, softening=scenario.softening, radii=scenario.radii,
+                              integrator=scenario.integrator, settings=scenario.integrator_settings)
+
+
+def export_scenario(trace: str | os.PathLike[str], output: str | os.PathLike[str], sample: int = -1) -> None:
+    """Write the scenario that continues ``trace`` from sample ``sample`` (see the module docstring).
+
+    It runs the steps left to the original run's end (or its end time, for an adaptive scheme);
+    from the last sample, as many again as the original run.
+    """
+    where = os.fspath(trace)
+    state = read_sample(where, sample)
+    scenario = stored_scenario_of(state, where)
+    changes: dict[str, Any] = {"positions": state.positions, "velocities": state.velocities,
+                               "masses": state.masses, "source": where,
+                               "description": f"continues {Path(where).name} from sample {state.index} (step "
+                                              f"{state.step}, t = {state.time!r}); {scenario.description}".rstrip("; ")}
+    if scenario.adaptive:
+        left = float(scenario.t_end) - state.time
+        changes["t_end"] = left if left > 0.0 else scenario.t_end
+    else:
+        left_steps = scenario.steps - state.step
+        changes["steps"] = left_steps if left_steps > 0 else scenario.steps
+    text = scenario.with_overrides(**changes).to_yaml()
+    write_atomically(output, lambda f: f.write(text))
+
+
+def positions_csv_path(output: str | os.PathLike[str]) -> Path:
+    """Where ``--positions`` writes the long-format body states: ``OUT.csv`` -> ``OUT.positions.csv``."""
+    out = Path(output)
+    return out.with_name(f"{out.stem}.positions{out.suffix or '.csv'}")
+
+
+def export_csv(trace: str | os.PathLike[str], output: str | os.PathLike[str], *, positions: bool = False) -> None:
+    """The series (one row per sample) to ``output``; with ``positions`` also every body's state
+    (one row per sample and body) to :func:`positions_csv_path`. Each file is complete or absent."""
+    name = os.fspath(trace)
+    with open_trace(name) as f:
+        if positions and "positions" not in f:
+            raise TraceError(f"{name}: the run did not record positions (output.positions: false); drop --positions")
+        names = tuple(f["bodies/names"].asstr()[()])
+        elements = [e for e in ELEMENTS if f"elements/{e}" in f]
+        with contextlib.ExitStack() as stack:
+            series = stack.enter_context(_pending(output))
+            _write_series(f, series.file, names, elements)
+            if positions:
+                bodies = stack.enter_context(_pending(positions_csv_path(output)))
+                _write_positions(f, bodies.file, names)
+                bodies.done()
+            series.done()
+
+
+def _write_series(f: Any, out: IO[str], names: tuple[str, ...], elements: list[str]) -> None:
+    columns = ["sample", "step", "time", "kinetic", "potential", "energy", "energy_error", "px", "py", "pz",
+               "Lx", "Ly", "Lz", *(_text(f"{e}[{n}]") for e in elements for n in names)]
+    out.write(",".join(columns) + "\n")
+    count = int(f["time"].shape[0])
+    for start in range(0, count, CSV_BLOCK):
+        stop = min(count, start + CSV_BLOCK)
+        parts = [np.arange(start, stop)[:, None], f["step"][start:stop][:, None],
+                 *(f[s][start:stop][:, None] for s in ("time", "kinetic", "potential", "energy", "energy_error")),
+                 f["momentum"][start:stop], f["angular_momentum"][start:stop],
+                 *(f[f"elements/{e}"][start:stop] for e in elements)]
+        _rows(out, np.hstack([np.asarray(p, dtype=np.float64) for p in parts]), ints=2)
+
+
+def _write_positions(f: Any, out: IO[str], names: tuple[str, ...]) -> None:
+    out.write("sample,step,time,body,x,y,z,vx,vy,vz\n")
+    count, n = int(f["time"].shape[0]), len(names)
+    block = max(1, CSV_BLOCK // max(n, 1))
+    for start in range(0, count, block):
+        stop = min(count, start + block)
+        x, v = f["positions"][start:stop], f["velocities"][start:stop]
+        step, time = f["step"][start:stop], f["time"][start:stop]
+        for s in range(stop - start):
+            head = f"{start + s},{int(step[s])},{_EXACT % time[s]},"
+            for i, body in enumerate(map(_text, names)):
+                out.write(head + body + "," + ",".join(_EXACT % c for c in (*x[s, i], *v[s, i])) + "\n")
+
+
+def _text(value: str) -> str:
+    """A CSV field: quoted (RFC 4180) when a body name holds a comma, quote or line break."""
+    return f'"{value.replace(chr(34), chr(34) * 2)}"' if any(c in value for c in ',"\r\n') else value
+
+
+def _rows(out: IO[str], table: np.ndarray, ints: int) -> None:
+    """Rows of ``table``; the first ``ints`` columns (sample, step) as whole numbers."""
+    for row in table:
+        out.write(",".join([*(str(int(c)) for c in row[:ints]), *(_EXACT % c for c in row[ints:])]) + "\n")
+
+
+class _Pending:
+    """A text file being written under a temporary name; :meth:`done` marks it complete."""
+
+    def __init__(self, target: Path) -> None:
+        self.target = target
+        self.tmp = target.with_name(f".{target.name}.tmp{os.getpid()}")
+        self.file: IO[str] = open(self.tmp, "w", encoding="utf-8", newline="")  # closed by _pending
+        self.complete = False
+
+    def done(self) -> None:
+        self.complete = True
+
+
+@contextlib.contextmanager
+def _pending(target: str | os.PathLike[str]) -> Iterator[_Pending]:
+    """Write to a temporary file; rename it onto ``target`` only if :meth:`_Pending.done` was called
+    and no error occurred, else remove it. Write errors become one :class:`OutputWriteError` line."""
+    from orbitsim.io.durable import replace_durably
+    from orbitsim.io.h5safe import io_failure
+
+    path = Path(target)
+    try:
+        pending = _Pending(path)
+    except OSError as err:
+        raise io_failure(err, f"{path}: {{reason}} (nothing was written)", path) from None
+    try:
+        yield pending
+        pending.file.close()
+        if pending.complete:
+            replace_durably(pending.tmp, path)
+    except OSError as err:
+        raise io_failure(err, f"{path}: {{reason}} (nothing was written)", path) from None
+    finally:
+        pending.file.close()
+        pending.tmp.unlink(missing_ok=True)
+
+
+def write_atomically(target: str | os.PathLike[str], write: Callable[[IO[str]], Any]) -> None:
+    """Write a text file with ``write(file)`` under a temporary name, then rename it onto ``target``."""
+    with _pending(target) as pending:
+        write(pending.file)
+        pending.done()
