@@ -144,7 +144,8 @@ class RunLoop:
 
         sc = self.scenario
         masses, pos, vel, radii = sc.masses, sc.positions, sc.velocities, sc.radii
-        t0 = self.start_point.checkpoint.t0 if self.start_point is not None else 0.0
+        # A continuation keeps its checkpoint's clock (a `run --from` switch of dt moves it); a new run: t_start.
+        t0 = self.start_point.checkpoint.t0 if self.start_point is not None else sc.t_start
         if self.start_point is not None:
             state = self.start_point.checkpoint.state
             pos, vel = state.pos.T, state.vel.T

@@ -130,7 +130,7 @@ def test_skip_invalid_runs_the_valid_cases_and_lists_the_invalid_ones(tmp_path):
         overrides: {steps: 200}
         grid:
           integrator: [verlet, rk4]
-          dt: [0.01, -1.0]
+          dt: [0.01, 0.0]
     """)
     out = tmp_path / "out"
     result = CliRunner().invoke(cli, ["batch", str(path), "-o", str(out), "--workers", "1", "--no-progress"])
@@ -138,20 +138,20 @@ def test_skip_invalid_runs_the_valid_cases_and_lists_the_invalid_ones(tmp_path):
     command = ["batch", str(path), "-o", str(out), "--workers", "1", "--no-progress", "--skip-invalid"]
     result = CliRunner().invoke(cli, command)
     assert result.exit_code == 1, result.output
-    reason = "grid.dt[1]: must be > 0, got -1.0 (line 6)"
+    reason = "grid.dt[1]: must be non-zero (> 0 runs forwards, < 0 backwards), got 0 (line 6)"
     assert result.stderr.splitlines()[-1] == (
         f"orbitsim: error: 2 invalid case(s) skipped (cases 1, 3: {reason}); the errors are in the summary")
     assert "4 runs: 2 complete, 2 invalid; 0 reused" in result.stdout
     table = result.stdout.splitlines()
     assert [line.split()[0] for line in table[1:5]] == ["0", "1", "2", "3"]
-    assert "invalid" in table[2] and "grid.dt[1]: must be > 0" in table[2]
+    assert "invalid" in table[2] and "grid.dt[1]: must be non-zero" in table[2]
     rows = read_csv(out / "summary.csv")
     assert [r["status"] for r in rows] == ["complete", "invalid", "complete", "invalid"]
     assert [(r["run_id"], r["trace"], r["error"]) for r in rows[1::2]] == [("", "", reason)] * 2
-    assert [(r["integrator"], r["dt"]) for r in rows[1::2]] == [("verlet", "-1.0"), ("rk4", "-1.0")]
+    assert [(r["integrator"], r["dt"]) for r in rows[1::2]] == [("verlet", "0.0"), ("rk4", "0.0")]
     with h5py.File(out / "summary.h5") as f:
         assert list(f["status"].asstr()[()]) == ["complete", "invalid", "complete", "invalid"]
-        assert list(f["run_id"].asstr()[()])[1::2] == ["", ""] and list(f["params/dt"][()]) == [0.01, -1.0] * 2
+        assert list(f["run_id"].asstr()[()])[1::2] == ["", ""] and list(f["params/dt"][()]) == [0.01, 0.0] * 2
     again = CliRunner().invoke(cli, command)
     assert again.exit_code == 1 and "4 runs: 2 complete, 2 invalid; 2 reused" in again.stdout
 
@@ -195,11 +195,12 @@ def test_results_do_not_depend_on_the_number_of_workers(client, tmp_path):
 def test_cli_rejects_an_invalid_sweep_with_exit_2_and_writes_nothing(tmp_path):
     path = write_sweep(tmp_path, """
         base: two_body_circular
-        grid: {dt: [0.01, 0.02, -1.0]}
+        grid: {dt: [0.01, 0.02, 0.0]}
     """)
     result = CliRunner().invoke(cli, ["batch", str(path), "-o", str(tmp_path / "out")])
     assert result.exit_code == 2
-    assert f"orbitsim: error: {path}: grid.dt[2]: must be > 0, got -1.0 (line 3)" in result.output
+    assert (f"orbitsim: error: {path}: grid.dt[2]: must be non-zero (> 0 runs forwards, < 0 backwards), got 0 "
+            "(line 3)") in result.output
     assert not (tmp_path / "out").exists()
 
 

@@ -108,9 +108,9 @@ def test_a_bad_grid_value_is_named_by_its_sweep_key_and_line(tmp_path):
         base: two_body_circular
         grid:
           integrator: [verlet]
-          dt: [0.01, 0.02, -0.5]
+          dt: [0.01, 0.02, 0]
     """)
-    assert message == ": grid.dt[2]: must be > 0, got -0.5 (line 5)"
+    assert message == ": grid.dt[2]: must be non-zero (> 0 runs forwards, < 0 backwards), got 0 (line 5)"
 
 
 @pytest.mark.parametrize(
@@ -129,8 +129,8 @@ def test_a_bad_grid_value_is_named_by_its_sweep_key_and_line(tmp_path):
         ("bsae: two_body_circular\ngrid: {dt: [0.1]}\n", ": bsae: unknown key"),
         ("base: two_body_circular\ngrid: {integrator: [verlet, kdk]}\n",
          ": case 1 (grid.integrator[1]): resolves to the same scenario as case 0"),
-        ("base: {integrator: verlet, dt: -1, steps: 3, bodies: [{m: 1, x: [0, 0, 0], v: [0, 0, 0]}]}\n"
-         "grid: {steps: [1]}\n", ": base.dt: must be > 0, got -1"),
+        ("base: {integrator: verlet, dt: 0, steps: 3, bodies: [{m: 1, x: [0, 0, 0], v: [0, 0, 0]}]}\n"
+         "grid: {steps: [1]}\n", ": base.dt: must be non-zero (> 0 runs forwards, < 0 backwards), got 0"),
         ("base: two_body_circular\ngrid: {dt: [0.1]\n", ": YAML syntax error"),
         ("name: a/b\nbase: two_body_circular\ngrid: {dt: [0.1]}\n", ": name: must be a plain file name"),
     ],
@@ -150,18 +150,18 @@ def test_skip_invalid_keeps_each_invalid_case_aside_with_its_error_and_line(tmp_
         overrides: {steps: 10}
         grid:
           integrator: [verlet, kdk, rk4]
-          dt: [0.01, -0.5]
+          dt: [0.01, 0]
     """
     with pytest.raises(SweepError, match=r"grid\.dt\[1\]"):  # the default is unchanged: the sweep is refused
         load_sweep(write(tmp_path, text))
     sweep = load_sweep(write(tmp_path, text), skip_invalid=True)
-    # Cases 1, 3 and 5 have dt = -0.5; case 2 (kdk, an alias of verlet) repeats case 0's scenario.
+    # Cases 1, 3 and 5 have dt = 0; case 2 (kdk, an alias of verlet) repeats case 0's scenario.
     assert [c.index for c in sweep.cases] == [0, 4]
     assert [c.index for c in sweep.invalid] == [1, 2, 3, 5]
     assert sweep.params == ("integrator", "dt")
     bad = sweep.invalid[0]
-    assert bad.params == {"integrator": "verlet", "dt": -0.5} and bad.where["dt"] == "grid.dt[1]"
-    assert bad.message == "grid.dt[1]: must be > 0, got -0.5 (line 6)"
+    assert bad.params == {"integrator": "verlet", "dt": 0} and bad.where["dt"] == "grid.dt[1]"
+    assert bad.message == "grid.dt[1]: must be non-zero (> 0 runs forwards, < 0 backwards), got 0 (line 6)"
     assert sweep.invalid[1].message.startswith("case 2 (grid.integrator[1], grid.dt[0]): resolves to the same "
                                                "scenario as case 0")
     assert all("\n" not in c.message and str(tmp_path) not in c.message for c in sweep.invalid)
@@ -170,8 +170,8 @@ def test_skip_invalid_keeps_each_invalid_case_aside_with_its_error_and_line(tmp_
 def test_skip_invalid_still_refuses_a_sweep_with_no_valid_case(tmp_path):
     path = write(tmp_path, """
         base: two_body_circular
-        grid: {dt: [-1.0, -2.0]}
+        grid: {dt: [0, 0.0]}
     """)
     with pytest.raises(SweepError) as info:
         load_sweep(path, skip_invalid=True)
-    assert str(info.value) == f"{path}: grid.dt[0]: must be > 0, got -1.0 (line 3)"
+    assert str(info.value) == f"{path}: grid.dt[0]: must be non-zero (> 0 runs forwards, < 0 backwards), got 0 (line 3)"

@@ -87,8 +87,8 @@ def plan_switch(src: Path, stored: Scenario, ckpt: Checkpoint, name: str, dt: fl
     here = ckpt.steps_done
     now = ckpt.t0 + here * stored.dt  # the time the kernels gave the last sample (Simulation.time)
     try:
-        if not changed and ckpt.t0 == 0.0 and steps is None:
-            scenario = stored.with_overrides(t_end=t_end)  # one longer run: its t_end resolved from t = 0
+        if not changed and ckpt.t0 == stored.t_start and steps is None:
+            scenario = stored.with_overrides(t_end=t_end)  # one longer run: its t_end resolved from t_start
         else:
             more = steps if steps is not None else resolve_steps(float(t_end) - now, dt)[0]
             changes: dict[str, Any] = {"steps": here + more}

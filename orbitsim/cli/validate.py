@@ -72,6 +72,8 @@ def _describe(spec: str, scenario: object, size: int) -> None:
 
     s = scenario  # a Scenario; typed loosely so this module imports nothing heavy at start-up
     length = f"t_end = {s.t_end:g} ({s.steps} steps)" if s.t_end is not None else f"{s.steps} steps"
+    if s.t_start:  # only then: the line of a scenario without t_start stays as it was
+        length = f"t_start = {s.t_start:g}, {length}"
     sampling = f"every {s.sample_every} steps" if s.interval is None else f"every {s.interval:g} time units"
     samples, exact = sample_count(s)
     click.echo(f"ok: {spec}: {s.name}, {s.n_bodies} bodies, {s.integrator}, dt = {s.dt:g}, {length}, "

@@ -5,8 +5,9 @@
 * :func:`export_scenario`: the stored (fully resolved) scenario with its initial state replaced by
   one sample's, for the steps left to the original end. Same integrator, settings, dt, units and
   sampling, floats written as their shortest round-trip text, so for a fixed-dt scheme the new run
-  from a sample continues the original bit for bit (the run's clock restarts at 0: forces in
-  orbitsim do not depend on time).
+  from a sample continues the original bit for bit. Its ``t_start`` is the sample's time, so its
+  samples continue the original's times (``t0 + n * dt`` against the original's
+  ``t_start + (K + n) * dt``: equal to round-off, a few ulp, not bit for bit).
 * :func:`export_csv`: the per-sample series, and with ``positions`` every body's state in long format.
 
 Every file is written to a temporary name beside its target and renamed once complete, so a failure
@@ -119,9 +120,10 @@ def export_scenario(trace: str | os.PathLike[str], output: str | os.PathLike[str
                                "masses": state.masses, "source": where,
                                "description": f"continues {Path(where).name} from sample {state.index} (step "
                                               f"{state.step}, t = {state.time!r}); {scenario.description}".rstrip("; ")}
-    if scenario.adaptive:
-        left = float(scenario.t_end) - state.time
-        changes["t_end"] = left if left > 0.0 else scenario.t_end
+    changes["t_start"] = state.time  # the continuation's clock goes on from the sample's
+    if scenario.adaptive:  # t_end is absolute: the original's, or from its end as long again as the original
+        left = float(scenario.t_end) > state.time
+        changes["t_end"] = scenario.t_end if left else state.time + (scenario.t_end - scenario.t_start)
     else:
         left_steps = scenario.steps - state.step
         changes["steps"] = left_steps if left_steps > 0 else scenario.steps

@@ -2,8 +2,9 @@
 
 A negative ``dt`` takes the same steps with ``h = dt`` (the kernels and the sample clock
 ``t0 + n * dt`` hold for either sign), so sample times decrease. ``t_end`` is still the end
-*time*: with ``dt < 0`` it must be negative (``dt: -0.01, t_end: -10`` is 1000 steps from t = 0 to
-t = -10); ``steps`` counts steps whatever the sign, and ``output.interval`` is a duration (> 0).
+*time*: with ``dt < 0`` it must be before ``t_start`` (default 0), so negative without one
+(``dt: -0.01, t_end: -10`` is 1000 steps from t = 0 to t = -10); ``steps`` counts steps whatever
+the sign, and ``output.interval`` is a duration (> 0).
 
 Which schemes may step backwards, and why:
 
@@ -26,7 +27,8 @@ from typing import Any
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number
 
-__all__ = ["BACKWARD_SCHEMES_REFUSED", "can_step_backward", "check_direction", "check_dt", "check_t_end"]
+__all__ = ["BACKWARD_SCHEMES_REFUSED", "can_step_backward", "check_adaptive_t_end", "check_direction", "check_dt",
+           "check_t_end"]
 
 #: Schemes that never step backwards (see the module docstring for why).
 BACKWARD_SCHEMES_REFUSED = ("ias15", "trace")
@@ -40,15 +42,28 @@ def check_dt(value: Any) -> float:
     return dt
 
 
-def check_t_end(value: Any, dt: float) -> float:
-    """``t_end`` as a finite float on the side of t = 0 that ``dt`` steps towards."""
+def check_t_end(value: Any, dt: float, t_start: float = 0.0) -> float:
+    """``t_end`` as a finite float on the side of ``t_start`` (default 0) that ``dt`` steps towards."""
     t_end = check_number(value, "t_end")
-    if dt > 0.0 and t_end <= 0.0:
-        raise ScenarioError(f"must be > 0 with dt = {dt:g} (a negative dt runs backwards, to a negative t_end), "
-                            f"got {t_end:g}", key="t_end")
-    if dt < 0.0 and t_end >= 0.0:
-        raise ScenarioError(f"must be < 0 with dt = {dt:g}: the run goes backwards from t = 0, so its end time is "
-                            f"negative (t_end: {-abs(t_end):g}), got {t_end:g}", key="t_end")
+    after = f"t_start = {t_start:g}" if t_start else "0"  # the messages of runs without t_start stay as they were
+    if dt > 0.0 and t_end <= t_start:
+        raise ScenarioError(f"must be > {after} with dt = {dt:g} (a negative dt runs backwards, to an earlier "
+                            f"t_end), got {t_end:g}", key="t_end")
+    if dt < 0.0 and t_end >= t_start:
+        raise ScenarioError(f"must be < {after} with dt = {dt:g}: the run goes backwards from t = {t_start:g}, so "
+                            f"its end time is earlier (t_end: {t_start - abs(t_end - t_start):g}), got {t_end:g}",
+                            key="t_end")
+    return t_end
+
+
+def check_adaptive_t_end(value: Any, t_start: float = 0.0) -> float:
+    """An adaptive run's ``t_end``: after ``t_start`` (it never runs backwards)."""
+    if not t_start:
+        return check_number(value, "t_end", positive=True)  # the message runs without t_start always gave
+    t_end = check_number(value, "t_end")
+    if t_end <= t_start:
+        raise ScenarioError(f"must be > t_start = {t_start:g} (an adaptive scheme runs forwards), got {t_end:g}",
+                            key="t_end")
     return t_end
 
 

@@ -10,18 +10,18 @@ from pathlib import Path
 from typing import Any
 
 from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_barycentre
-from orbitsim.scenario.direction import check_dt, check_t_end
+from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.events import read_events
 from orbitsim.scenario.fields import Fields, describe
 from orbitsim.scenario.model import DEFAULT_SAMPLES, FRAMES, Scenario, resolve_steps
 from orbitsim.scenario.rebound_bodies import expand_rebound_bodies, uses_rebound_file
-from orbitsim.scenario.timing import adaptive_integrator, resolve_grid
+from orbitsim.scenario.timing import adaptive_integrator, check_t_start, resolve_grid, run_span
 from orbitsim.scenario.yamlio import parse_yaml
 
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
 
-TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "steps", "t_end", "output", "softening",
+TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "t_start", "steps", "t_end", "output", "softening",
             "frame", "bodies", "ephemeris", "generator", "events", "forces",
             "angles")  # angles: read with the bodies (orbitsim.scenario.bodies)
 OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary")
@@ -171,14 +171,15 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     dt = check_dt(top.number("dt"))  # < 0 runs backwards (orbitsim.scenario.direction)
     output = Fields(top.raw("output", {}), "output", OUTPUT_KEYS, "output section")
     output.one_of("every", "interval", required=False)
+    t_start = check_t_start(top.raw("t_start", 0.0))  # the run's clock starts here; t_end stays absolute
     t_end = None
     if adaptive_integrator(integrator, settings):
-        steps, t_end = _adaptive_grid(top, output, integrator)
+        steps, t_end = _adaptive_grid(top, output, integrator, t_start)
     elif top.one_of("steps", "t_end") == "steps":
         steps = top.integer("steps", minimum=1, steps=True)
     else:
-        t_end = check_t_end(top.number("t_end"), dt)  # negative with a negative dt
-        steps = resolve_steps(t_end, dt)[0]
+        t_end = check_t_end(top.number("t_end"), dt, t_start)  # before t_start with a negative dt
+        steps = resolve_steps(t_end, dt, t_start)[0]
     softening = top.number("softening", 0.0, minimum=0.0)
     frame = top.string("frame", "as_given", choices=FRAMES)
     name = top.string("name", default_name)
@@ -205,24 +206,25 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                         names=tuple(bodies.names), masses=m, positions=x, velocities=v, source=source,
                         checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, radii=radii,
                         events=events, record_elements=elements, elements_primary=primary,
-                        forces=top.raw("forces", ()))
+                        forces=top.raw("forces", ()), t_start=t_start)
     scenario.remember_origins(bodies.origins)
     scenario.remember_input(bodies.notes)  # angle unit and axes, for `orbitsim validate`
     return scenario
 
 
-def _adaptive_grid(top: Fields, output: Fields, integrator: str) -> tuple[int, float]:
-    """An adaptive scheme's output intervals and ``t_end``: it needs ``t_end``, and samples by
-    ``output.interval``."""
+def _adaptive_grid(top: Fields, output: Fields, integrator: str, t_start: float) -> tuple[int, float]:
+    """An adaptive scheme's output intervals from ``t_start`` and ``t_end``: it needs ``t_end``, and
+    samples by ``output.interval``."""
     if top.has("steps") or not top.has("t_end"):
         raise top.error("steps" if top.has("steps") else "t_end",
                         f"{integrator} chooses its own steps: give t_end (the end time), not steps")
     if output.has("every"):
         raise output.error("every", f"{integrator} chooses its own steps, so samples are taken by time: give "
                                     "output.interval instead of output.every")
-    t_end = top.number("t_end", positive=True)
+    t_end = check_adaptive_t_end(top.number("t_end"), t_start)
+    span = run_span(t_end, t_start)
     interval = output.number("interval", None, positive=True)
-    return resolve_grid(t_end, interval if interval is not None else t_end / DEFAULT_SAMPLES), t_end
+    return resolve_grid(span, interval if interval is not None else span / DEFAULT_SAMPLES), t_end
 
 
 def _read_checkpoint(output: Fields) -> tuple[int | None, float | None]:

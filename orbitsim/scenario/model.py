@@ -18,12 +18,20 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from orbitsim.scenario.bodies import check_coincident, check_finite_state
-from orbitsim.scenario.direction import check_direction, check_dt, check_t_end
+from orbitsim.scenario.direction import check_adaptive_t_end, check_direction, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_count, check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
-from orbitsim.scenario.timing import MAX_STEPS, adaptive_integrator, resolve_grid, resolve_steps, steps_limit_error
+from orbitsim.scenario.timing import (
+    MAX_STEPS,
+    adaptive_integrator,
+    check_t_start,
+    resolve_grid,
+    resolve_steps,
+    run_span,
+    steps_limit_error,
+)
 
 if TYPE_CHECKING:
     from orbitsim.sampling import SamplePlan
@@ -60,7 +68,9 @@ class Scenario:
     steps : int
         Whole steps to take (resolved from ``t_end`` when the file gave that).
     t_end : float or None
-        End time as the file gave it, else None; ``steps * dt <= t_end``.
+        End time as the file gave it, else None; ``t_start + steps * dt <= t_end``.
+    t_start : float
+        Time of step 0 (default 0): sample n is at ``t_start + n * dt``.
     every : int or None
         Sample every K steps; None with ``interval`` None means about :data:`DEFAULT_SAMPLES`.
     interval : float or None
@@ -120,6 +130,7 @@ class Scenario:
     record_elements: bool = False
     elements_primary: str = "heaviest"
     forces: tuple[dict[str, Any], ...] = ()
+    t_start: float = 0.0  # time of step 0: sample n is at t_start + n * dt (orbitsim.scenario.timing)
 
     def __post_init__(self) -> None:
         try:
@@ -228,15 +239,16 @@ class Scenario:
     def _validate_time(self) -> None:
         self._set("dt", check_dt(self.dt))  # < 0 runs backwards (orbitsim.scenario.direction)
         self._set("steps", check_count(self.steps, "steps"))
+        self._set("t_start", check_t_start(self.t_start))
         if self.adaptive:
             self._validate_adaptive_time()
             return
-        if not math.isfinite(self.steps * self.dt):
+        if not math.isfinite(self.t_start + self.steps * self.dt):
             raise ScenarioError(f"steps * dt = {self.steps} * {self.dt:g} overflows float64: use a smaller dt "
                                 "(or other units)", key="dt")
         if self.t_end is not None:
-            self._set("t_end", check_t_end(self.t_end, self.dt))
-            expected, _ = resolve_steps(self.t_end, self.dt)
+            self._set("t_end", check_t_end(self.t_end, self.dt, self.t_start))
+            expected, _ = resolve_steps(self.t_end, self.dt, self.t_start)
             if expected != self.steps:
                 raise ScenarioError(f"steps = {self.steps} disagrees with t_end = {self.t_end:g} / dt = "
                                     f"{self.dt:g} ({expected} whole steps): give only one", key="steps")
@@ -257,13 +269,13 @@ class Scenario:
         name = self.integrator
         if self.t_end is None:
             raise ScenarioError(f"{name} chooses its own steps: give t_end (the end time), not steps", key="steps")
-        self._set("t_end", check_number(self.t_end, "t_end", positive=True))
+        self._set("t_end", check_adaptive_t_end(self.t_end, self.t_start))
         if self.every is not None:
             raise ScenarioError(f"{name} chooses its own steps, so samples are taken by time: give "
                                 "output.interval instead of output.every", key="output.every")
         if self.interval is not None:
             self._set("interval", check_number(self.interval, "output.interval", positive=True))
-        expected = resolve_grid(self.t_end, self.grid_dt)
+        expected = resolve_grid(run_span(self.t_end, self.t_start), self.grid_dt)
         if expected != self.steps:
             raise ScenarioError(f"steps = {self.steps} disagrees with t_end = {self.t_end:g} / output.interval = "
                                 f"{self.grid_dt:g} ({expected} output intervals)", key="steps")
@@ -294,7 +306,7 @@ class Scenario:
         interval (``output.interval``, or t_end / DEFAULT_SAMPLES), on which samples land exactly."""
         if not self.adaptive:
             return self.dt
-        return self.interval if self.interval is not None else self.t_end / DEFAULT_SAMPLES
+        return self.interval if self.interval is not None else run_span(self.t_end, self.t_start) / DEFAULT_SAMPLES
 
     @property
     def run_settings(self) -> dict[str, Any]:
@@ -306,16 +318,16 @@ class Scenario:
 
     @property
     def end_time(self) -> float:
-        """Time of the last step, ``steps * dt`` (<= ``t_end`` when that was given); ``t_end`` for
+        """Time of the last step, ``t_start + steps * dt`` (<= ``t_end`` when that was given); ``t_end`` for
         an adaptive run, whose last sample lands on it exactly."""
         if self.adaptive:
             return float(self.t_end)
-        return self.steps * self.dt
+        return self.t_start + self.steps * self.dt
 
     @property
     def t_end_is_whole(self) -> bool:
         """False when ``t_end`` was given and is not a whole number of steps."""
-        return self.t_end is None or resolve_steps(self.t_end, self.dt)[1]
+        return self.t_end is None or resolve_steps(self.t_end, self.dt, self.t_start)[1]
 
     @property
     def sample_every(self) -> int | None:

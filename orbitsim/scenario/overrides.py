@@ -1,7 +1,7 @@
 """What :meth:`Scenario.with_overrides <orbitsim.scenario.Scenario.with_overrides>` changes.
 
 Some fields hang together, so replacing one resolves the others: ``steps`` and ``t_end`` (with
-``dt``), ``every`` and ``interval``, and an integrator with its settings.
+``dt`` and ``t_start``), ``every`` and ``interval``, and an integrator with its settings.
 """
 
 from __future__ import annotations
@@ -9,17 +9,17 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from orbitsim.scenario.direction import check_dt, check_t_end
+from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, unknown_key_error
-from orbitsim.scenario.timing import resolve_steps
+from orbitsim.scenario.timing import check_t_start, resolve_steps, run_span
 
 if TYPE_CHECKING:
     from orbitsim.scenario.model import Scenario
 
 __all__ = ["OVERRIDABLE", "resolve_overrides"]
 
-OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "steps", "t_end", "every",
+OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "t_start", "steps", "t_end", "every",
                "interval", "record_positions", "softening", "G", "names", "masses", "positions",
                "velocities", "source", "checkpoint_every", "checkpoint_seconds", "radii", "events", "record_elements",
                "elements_primary", "forces")
@@ -75,16 +75,17 @@ def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
         _resolve_adaptive_time(scenario, changes)
         return
     dt = check_dt(changes.get("dt", scenario.dt))
+    t_start = check_t_start(changes.get("t_start", scenario.t_start))  # a new t_start re-resolves steps from t_end
     if "steps" in changes:
         changes["t_end"] = None
         return
     t_end = changes.get("t_end", scenario.t_end)
     blame = "t_end" if "t_end" in changes or "dt" not in changes else "dt"  # a file's t_end with a new dt
     if t_end is not None:
-        t_end = check_t_end(t_end, dt)
+        t_end = check_t_end(t_end, dt, t_start)
         changes["t_end"] = t_end
         try:
-            changes["steps"] = resolve_steps(t_end, dt)[0]
+            changes["steps"] = resolve_steps(t_end, dt, t_start)[0]
         except ScenarioError as err:
             raise ScenarioError(err.reason, key=blame) from None
 
@@ -105,6 +106,7 @@ def _resolve_adaptive_time(scenario: Scenario, changes: dict[str, Any]) -> None:
     from orbitsim.scenario.model import DEFAULT_SAMPLES
     from orbitsim.scenario.timing import resolve_grid
 
+    t_start = check_t_start(changes.get("t_start", scenario.t_start))
     interval = None if "every" in changes else changes.get("interval", scenario.interval)
     if interval is not None:
         interval = check_number(interval, "output.interval", positive=True)
@@ -112,7 +114,8 @@ def _resolve_adaptive_time(scenario: Scenario, changes: dict[str, Any]) -> None:
         if interval is None:
             raise ScenarioError(f"{changes.get('integrator', scenario.integrator)} chooses its own steps: give "
                                 "t_end (the end time), not steps", key="steps")
-        changes["t_end"] = changes["steps"] * interval
-    t_end = check_number(changes.get("t_end", scenario.t_end), "t_end", positive=True)
+        changes["t_end"] = t_start + changes["steps"] * interval
+    t_end = check_adaptive_t_end(changes.get("t_end", scenario.t_end), t_start)
     changes["t_end"] = t_end
-    changes["steps"] = resolve_grid(t_end, interval if interval is not None else t_end / DEFAULT_SAMPLES)
+    span = run_span(t_end, t_start)
+    changes["steps"] = resolve_grid(span, interval if interval is not None else span / DEFAULT_SAMPLES)

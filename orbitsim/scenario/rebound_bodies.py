@@ -3,9 +3,9 @@
 The file's particles become explicit Cartesian bodies (their floats unchanged, so the run starts
 from the file's exact bits), and the file also supplies ``G``, ``dt``, ``softening`` and the
 integrator wherever the scenario gives none: positions and velocities mean something only in the
-file's units, whose ``G`` is the file's. The file's time ``t`` is not a start time (an orbitsim run's
-clock starts at 0), so it is kept in the description. :func:`rebound_scenario` is
-``orbitsim run sim.bin``: the same, with only the run length from the command line.
+file's units, whose ``G`` is the file's. The file's time ``t`` becomes ``t_start`` (the run's clock
+continues the file's; ``t_end`` is then an absolute time after it) unless the scenario gives one.
+:func:`rebound_scenario` is ``orbitsim run sim.bin``: the same, with only the run length from the command line.
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ def expand_rebound_bodies(doc: Mapping[str, Any], source: str) -> dict[str, Any]
 
     ``FILE`` is relative to the scenario file's directory. ``snapshot`` (default -1, the last)
     picks a snapshot of a Simulationarchive; ``names`` (default ``p0``, ``p1``, ...) names the
-    particles. ``G``, ``dt``, ``softening`` and ``integrator`` come from the file unless ``doc``
-    gives them.
+    particles. ``G``, ``dt``, ``softening``, ``t_start`` (the file's ``t``) and ``integrator`` come
+    from the file unless ``doc`` gives them.
 
     Raises
     ------
@@ -66,7 +66,7 @@ def expand_rebound_bodies(doc: Mapping[str, Any], source: str) -> dict[str, Any]
     names = _names(spec.get("names"), state.masses.shape[0])
     out = dict(doc)
     out["bodies"] = _bodies(state, names)
-    for key, value in (("G", state.G), ("dt", state.dt), ("softening", state.softening)):
+    for key, value in (("G", state.G), ("dt", state.dt), ("softening", state.softening), ("t_start", state.t)):
         out.setdefault(key, value)
     if "integrator" not in out:
         if state.integrator is None:
@@ -101,7 +101,8 @@ def _bodies(state: Any, names: list[str]) -> list[dict[str, Any]]:
 
 
 def rebound_scenario(path: str | os.PathLike[str], *, steps: int | None = None, t_end: float | None = None) -> Any:
-    """The scenario of ``orbitsim run sim.bin``: the file's last snapshot, run for ``steps`` or to ``t_end``.
+    """The scenario of ``orbitsim run sim.bin``: the file's last snapshot, run for ``steps`` or to ``t_end``
+    (an absolute time, after the file's ``t``).
 
     Raises
     ------

@@ -3,9 +3,9 @@
 Bodies are explicit and Cartesian, the frame is ``as_given`` (any shift is already applied),
 ``steps`` replaces ``t_end`` (except for an adaptive integrator, whose grid ends on ``t_end``
 exactly) and the sampling is explicit, so loading the text reproduces the same bits. Keys a
-scenario does not use (radii, ``events``, ``forces``, ``output.elements``, ``output.checkpoint``) are left
-out rather than written as defaults, so the text and SHA-256 of every scenario written before
-they existed stay the same.
+scenario does not use (``t_start`` when 0, radii, ``events``, ``forces``, ``output.elements``,
+``output.checkpoint``) are left out rather than written as defaults, so the text and SHA-256 of
+every scenario written before they existed stay the same.
 """
 
 from __future__ import annotations
@@ -41,8 +41,10 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         if s.radii is not None:
             body["r"] = float(s.radii[k])
         bodies.append(body)
+    # t_start only when set, so a scenario without it keeps its text and SHA-256 from before t_start existed.
+    start = {"t_start": s.t_start} if s.t_start else {}
     doc = {"name": s.name, "description": s.description, "units": s.units, "G": s.G, "integrator": integrator,
-           "dt": s.dt, "steps": s.steps, "output": output, "softening": s.softening, "frame": "as_given"}
+           "dt": s.dt, **start, "steps": s.steps, "output": output, "softening": s.softening, "frame": "as_given"}
     if s.adaptive:  # its grid is the output intervals up to t_end exactly, and `steps` is refused
         doc = {("t_end" if k == "steps" else k): (s.t_end if k == "steps" else v) for k, v in doc.items()}
     if s.events is not None:

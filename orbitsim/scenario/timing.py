@@ -7,6 +7,10 @@ except that a ``t_end`` a whole number of steps long up to round-off means exact
 Every step count of a scenario (``steps``, ``t_end / dt``, ``output.every``,
 ``output.interval / dt``, ``output.checkpoint.every``) is at most :data:`MAX_STEPS`.
 
+A run's clock starts at ``t_start`` (default 0; :func:`check_t_start`): sample n is at
+``t_start + n * dt`` and ``t_end`` is still the absolute end time, so the steps are counted over
+:func:`run_span` ``= t_end - t_start``.
+
 An adaptive integrator (:func:`adaptive_integrator`) takes no fixed steps: its run is counted in
 output intervals instead (:func:`resolve_grid`), the last one ending on ``t_end`` exactly.
 """
@@ -19,7 +23,8 @@ from typing import Any
 
 from orbitsim.scenario.errors import ScenarioError
 
-__all__ = ["MAX_STEPS", "adaptive_integrator", "resolve_grid", "resolve_steps", "steps_limit_error"]
+__all__ = ["MAX_STEPS", "adaptive_integrator", "check_t_start", "resolve_grid", "resolve_steps", "run_span",
+           "steps_limit_error"]
 
 #: The most steps a scenario may count: 2**53. A sample's time is ``step * dt`` in float64, which
 #: holds every whole number exactly only up to 2**53; beyond it two steps can share one time (and
@@ -32,22 +37,39 @@ MAX_STEPS = 2**53
 _WHOLE_STEPS_RTOL = 1e-9
 
 
-def resolve_steps(t_end: float, dt: float) -> tuple[int, bool]:
-    """Whole steps of ``dt`` that fit in ``t_end``, and whether they fill it exactly.
+def check_t_start(value: Any) -> float:
+    """``t_start`` as a finite float; ``-0.0`` becomes ``0.0`` (it is written only when non-zero, so
+    both must mean the same clock)."""
+    from orbitsim.scenario.fields import check_number  # fields imports this module (MAX_STEPS)
+
+    return check_number(value, "t_start") + 0.0
+
+
+def run_span(t_end: float, t_start: float) -> float:
+    """How long the run is: ``t_end - t_start``, exactly ``t_end`` when ``t_start`` is 0 (so
+    scenarios without ``t_start`` resolve to the same steps as before it existed)."""
+    return t_end - t_start if t_start else t_end
+
+
+def resolve_steps(t_end: float, dt: float, t_start: float = 0.0) -> tuple[int, bool]:
+    """Whole steps of ``dt`` that fit between ``t_start`` and ``t_end``, and whether they fill it exactly.
 
     Raises
     ------
     ScenarioError
         When not even one step fits, or more than :data:`MAX_STEPS` do.
     """
+    what = "t_end - t_start" if t_start else "t_end"
+    counted = "(t_end - t_start)" if t_start else "t_end"
+    t_end = run_span(t_end, t_start)  # from here on a duration, counted from t_start
     if dt < 0.0:  # backwards (orbitsim.scenario.direction): the mirror image of the forward count
         t_end, dt = -t_end, -dt
     ratio = t_end / dt
     if not ratio <= 2.0 * MAX_STEPS:  # also inf (1e308 / 0.01) and nan, which round() cannot take
-        raise steps_limit_error(f"t_end / dt = {ratio:.3g} steps", "t_end")
-    steps, whole = _whole_steps(t_end, dt, ratio)
+        raise steps_limit_error(f"{counted} / dt = {ratio:.3g} steps", "t_end")
+    steps, whole = _whole_steps(t_end, dt, ratio, what)
     if steps > MAX_STEPS:
-        raise steps_limit_error(f"t_end / dt = {ratio:.3g} steps", "t_end")
+        raise steps_limit_error(f"{counted} / dt = {ratio:.3g} steps", "t_end")
     return steps, whole
 
 
@@ -81,7 +103,7 @@ def resolve_grid(t_end: float, interval: float) -> int:
     return max(1, math.ceil(ratio))
 
 
-def _whole_steps(t_end: float, dt: float, ratio: float) -> tuple[int, bool]:
+def _whole_steps(t_end: float, dt: float, ratio: float, what: str = "t_end") -> tuple[int, bool]:
     nearest = round(ratio)
     if nearest >= 1 and abs(ratio - nearest) <= _WHOLE_STEPS_RTOL * ratio:
         return int(nearest), True
@@ -92,7 +114,7 @@ def _whole_steps(t_end: float, dt: float, ratio: float) -> tuple[int, bool]:
     while (steps + 1) * dt <= t_end:
         steps += 1
     if steps < 1:
-        raise ScenarioError(f"t_end = {t_end:g} is shorter than one step (dt = {dt:g})", key="t_end")
+        raise ScenarioError(f"{what} = {t_end:g} is shorter than one step (dt = {dt:g})", key="t_end")
     return steps, False
 
 
