@@ -273,3 +273,19 @@ def test_what_forced_loops_do_not_combine_yet_is_refused_before_the_run(tmp_path
         lines = result.output.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith(f"orbitsim: error: {path}: forces[0]: ") and fragment in lines[0]
     assert sorted(tmp_path.iterdir()) == [path]
+
+
+def test_a_dissipative_run_is_not_called_untrustworthy_for_the_energy_it_removes(tmp_path: Path) -> None:
+    # migration removes energy on purpose; the run's note says so, and the |dE/E| > 1% warning,
+    # which would blame the step, must not follow it.
+    text = ("integrator: leapfrog\ndt: 0.01\nsteps: 300\nunits: nbody\nbodies:\n"
+            "  - {name: star, m: 1.0, x: [0, 0, 0], v: [0, 0, 0]}\n"
+            "  - {name: planet, m: 1.0e-3, x: [1, 0, 0], v: [0, 1, 0]}\n"
+            "forces:\n  - {force: migration, bodies: {planet: {tau_a: -1.0}}}\n")
+    path = write(tmp_path, text)
+    result = CliRunner().invoke(cli, ["run", str(path), "-o", str(tmp_path / "out.h5")])
+    assert result.exit_code == 0, result.output
+    assert "migration adds or removes energy on purpose" in result.output
+    err = float(result.output.split("max |dE/E| = ")[1].split(",")[0])
+    assert err > 0.01  # the warning's threshold is crossed, so its absence is the check
+    assert "cannot be trusted" not in result.output

@@ -296,6 +296,12 @@ class Scenario:
         return int(self.masses.shape[0])
 
     @property
+    def dissipative(self) -> bool:
+        """Whether a force adds or removes energy on purpose (``migration``): the energy error then
+        measures the force, not the integrator (:attr:`orbitsim.forces.table.ForceSet.dissipative`)."""
+        return any(entry["force"] == "migration" for entry in self.forces)
+
+    @property
     def adaptive(self) -> bool:
         """Whether the integrator chooses its own steps (ias15 unless ``adaptive: false``)."""
         return adaptive_integrator(self.integrator, self.integrator_settings)
@@ -361,7 +367,7 @@ class Scenario:
     def notes(self) -> list[str]:
         """Things a user should know before running, one line each (may be empty)."""
         notes = []
-        if any(entry["force"] == "migration" for entry in self.forces):
+        if self.dissipative:
             notes.append("migration adds or removes energy on purpose: the energy error measures it, not the "
                          "integrator's error")
         if self.adaptive:
