@@ -163,6 +163,10 @@ class RunLoop:
             sim.steps_done = self.start_point.checkpoint.steps_done  # a new scheme: its work is made fresh
         elif self.start_point is not None:
             restore_state(sim, self.start_point.checkpoint.state)
+        elif sc.integrator_state is not None:  # an exported scenario: the scheme's own coordinates at its start
+            from orbitsim.scenario.integrator_state import install
+
+            install(sim, sc)
         return sim
 
     def _take(self, chunk: SampleChunk) -> None:

@@ -96,3 +96,22 @@ def test_ladder_defaults_and_validation() -> None:
     assert ladder(0.01, [0.001, 0.002]) == [0.002, 0.001]
     with pytest.raises(ValueError):
         ladder(0.01, [0.0])
+
+
+def test_t_end_is_on_the_scenario_clock(tmp_path: Path) -> None:
+    """--t-end is absolute like a scenario's t_end: with t_start = 10, --t-end 14.4 measures the same 4.4
+    time units as --t-end 4.4 from 0, so the rungs take the same steps and land on the same errors."""
+    text = (Path(__file__).parents[1] / "configs" / "two_body_eccentric.yaml").read_text()
+    later = tmp_path / "later.yaml"
+    later.write_text(text + "t_start: 10\n", encoding="utf-8")
+    args = ("--integrators", "verlet", "--rebound", "none", "--dts", "0.002,0.001", "-q")
+    assert invoke("convergence", "two_body_eccentric", "-o", str(tmp_path / "a"), "--t-end", "4.4", *args)[0] == 0
+    code, _, stderr = invoke("convergence", str(later), "-o", str(tmp_path / "b"), "--t-end", "14.4", *args)
+    assert code == 0, stderr
+    first, second = (json.loads((tmp_path / d / "summary.json").read_text())["series"][0]["points"] for d in "ab")
+    assert [p["steps"] for p in second] == [p["steps"] for p in first] == [2200, 4400]
+    # Same steps from the same state, the clock only shifted: the errors agree to the bit.
+    assert [p["error"] for p in second] == [p["error"] for p in first]
+    assert "End time t = 14.4" in (tmp_path / "b" / "report.md").read_text()
+    code, _, stderr = invoke("convergence", str(later), "-o", str(tmp_path / "c"), "--t-end", "4.4", *args)
+    assert code == 2 and "--t-end 4.4 is not after the scenario's t_start = 10" in stderr

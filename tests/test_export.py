@@ -22,9 +22,8 @@ THREE_BODIES = [
     {"name": "outer", "m": 3e-4, "x": [0.0, -2.1, 0.0], "v": [0.7, 0.0, -0.01]},
 ]
 #: Fixed-dt schemes whose state is x and v alone: a run restarted from a sample takes the same steps.
-#: Not wisdom_holman: it steps in Jacobi coordinates and a sample is converted back to Cartesian, so a
-#: restart converts again and differs by round-off (as a REBOUND WHFast restart from Cartesian does);
-#: ``run --from`` continues it bit for bit from the trace's checkpoint instead.
+#: wisdom_holman continues bit for bit through its own coordinates, which the export writes
+#: (tests/test_export_wh_state.py).
 FIXED_DT = ["leapfrog", "leapfrog4", "verlet", "rk4", "semi_implicit_euler"]
 
 

@@ -110,6 +110,11 @@ def test_a_switched_run_extends_and_records_every_change(tmp_path: Path) -> None
     history = json.loads(read(twice)[0]["integrator_history"])
     assert [(r["step"], r["to"]["integrator"], r["to"]["dt"]) for r in history] == [
         (100, "verlet", 0.005), (180, "leapfrog", 0.005)]
+    code, shown, _ = invoke("info", str(twice))  # info lists each change, not the raw JSON
+    assert code == 0 and "history:  2 changes of scheme or dt (run --from)" in shown
+    assert "  step 100 (t = 1): verlet (dt = 0.01) -> verlet (dt = 0.005)" in shown
+    assert "  step 180 (t = 1.4): verlet (dt = 0.005) -> leapfrog (dt = 0.005)" in shown
+    assert '"step"' not in shown
 
 
 def test_refusals_are_one_line_and_write_nothing(tmp_path: Path) -> None:

@@ -58,7 +58,7 @@ def convergence_figure(result: ConvergenceResult, path: Path) -> Path:
         ticks_at(ax, np.array(result.dts))
         ax.set_xlabel(f"timestep dt [{time_unit}]")
         ax.set_ylabel("relative position error at the end time")
-        ax.set_title(f"Convergence against IAS15 at t = {result.end_time:.6g} {time_unit}: "
+        ax.set_title(f"Convergence against IAS15 at t = {result.scenario.t_start + result.end_time:.6g} {time_unit}: "
                      f"{result.scenario.name}")
         fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=2, frameon=False)
         return save(fig, path)
@@ -102,7 +102,10 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
     sc = result.scenario
     time_unit, _ = unit_labels(sc.units)
     off = result.check(tolerance)
-    lead = [f"End time T = {result.end_time:.10g} {time_unit}; error = max over bodies of |x - x_ref| "
+    span = f"T = {result.end_time:.10g} {time_unit}"
+    if sc.t_start:  # the scenario's clock starts later: T is the run's length from there
+        span = f"t = {sc.t_start + result.end_time:.10g} {time_unit} ({span} after t_start = {sc.t_start:.10g})"
+    lead = [f"End time {span}; error = max over bodies of |x - x_ref| "
             "divided by the largest distance from the origin, against REBOUND IAS15 stopped exactly at n dt."]
     lead.append("PASS: every fitted order is within " f"{tolerance:g} of the declared order." if not off
                 else "Fitted orders off the declared ones by more than " f"{tolerance:g}: " + "; ".join(off))
@@ -120,7 +123,7 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
                        "ones sit on the round-off floor or outside the asymptotic regime.",
         "work_precision": "Error against wall time: lower-left is better. orbitsim solid, REBOUND dashed.",
     }
-    steps = round(result.end_time / sc.dt) if sc.dt else 0
+    steps = round(result.end_time / abs(sc.dt)) if sc.dt else 0
     return Report(f"Convergence: {sc.name}", lead, [
         Section("Fitted orders", [orders]),
         Section("Errors", [errors, walls]),

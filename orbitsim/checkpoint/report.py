@@ -17,7 +17,7 @@ from orbitsim.io.checkpoint import (
     read_checkpoint,
 )
 
-__all__ = ["checkpoint_file_lines", "is_checkpoint_request", "trace_checkpoint_lines"]
+__all__ = ["checkpoint_file_lines", "history_lines", "is_checkpoint_request", "trace_checkpoint_lines"]
 
 
 def is_checkpoint_request(path: str | os.PathLike) -> bool:
@@ -53,7 +53,27 @@ def checkpoint_file_lines(path: str | os.PathLike) -> list[str]:
         ("resumes", str(ckpt.resumes)),
         ("resumable", _file_verdict(output, ckpt)),
     ]
-    return [f"checkpoint: {checkpoint_path(output)}", *(f"  {key:<20} {value}" for key, value in rows)]
+    return [f"checkpoint: {checkpoint_path(output)}", *(f"  {key:<20} {value}" for key, value in rows),
+            *history_lines(ckpt.history)]
+
+
+def history_lines(history: Any) -> list[str]:
+    """The ``history:`` section: each scheme or dt change ``run --from`` made (orbitsim.checkpoint.switch)."""
+    import json
+
+    if not isinstance(history, str) or not history:
+        return []
+    try:
+        changes = json.loads(history)
+        lines = [f"  step {c['step']} (t = {c['time']:.10g}): {_scheme(c['from'])} -> {_scheme(c['to'])}"
+                 for c in changes]
+    except (ValueError, TypeError, KeyError):
+        return [f"history:  unreadable integrator_history attribute: {history[:100]}"]
+    return [f"history:  {len(lines)} change{'s' if len(lines) != 1 else ''} of scheme or dt (run --from)", *lines]
+
+
+def _scheme(side: dict[str, Any]) -> str:
+    return f"{side['integrator']} (dt = {side['dt']:.10g})"
 
 
 def _file_verdict(output: Path, ckpt: Checkpoint) -> str:

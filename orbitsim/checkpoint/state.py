@@ -15,7 +15,7 @@ from orbitsim.io.checkpoint import CheckpointError, SimState, layout_json
 if TYPE_CHECKING:
     from orbitsim.simulation import Simulation
 
-__all__ = ["capture_state", "restore_state"]
+__all__ = ["capture_state", "restore_state", "restore_work"]
 
 
 def capture_state(sim: Simulation) -> SimState:
@@ -70,6 +70,17 @@ def restore_state(sim: Simulation, state: SimState) -> None:
         raise CheckpointError("checkpoint and run differ in whether events are watched")
     if sim.watcher is not None:
         sim.watcher.restore(state.events)
+
+
+def restore_work(work: Any, state: SimState) -> bool:
+    """Write ``state``'s integrator work into ``work`` (a scheme's freshly made work, in place);
+    False when it does not fit (another scheme, settings or number of bodies)."""
+    arrays = iter(state.work)
+    try:
+        _restore(work, json.loads(state.work_layout), arrays)
+    except (CheckpointError, StopIteration):
+        return False
+    return next(arrays, None) is None
 
 
 def _restore(obj: Any, layout: Any, arrays: Any, run_constants: tuple[int, ...] = ()) -> None:

@@ -39,8 +39,9 @@ def parse_dts(text: str | None) -> list[float] | None:
               help="The dt ladder (default: the scenario's dt times 4, 2, 1, 1/2, 1/4, 1/8). "
                    "Example: --dts 0.004,0.002,0.001,0.0005")
 @click.option("--t-end", type=FINITE_POSITIVE, default=None,
-              help="End time T at which errors are measured (default: the scenario's end time). Prefer a "
-                   "T that is not a whole number of periods. Example: --t-end 4.4")
+              help="End time at which errors are measured, on the scenario's clock like its t_end "
+                   "(default: the scenario's end time). Prefer one that is not a whole number of periods "
+                   "after t_start. Example: --t-end 4.4")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="End time as a number of steps of the scenario's dt. Example: --steps 5000")
 @click.option("--check", is_flag=True,
@@ -79,7 +80,10 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
     if steps is not None and t_end is not None:
         fail("give only one of --steps and --t-end")
     sc = load_scenario(scenario)
-    end_time = t_end if t_end is not None else (steps or sc.steps) * sc.dt
+    # Rungs run forwards from t_start over the span T (a backwards scenario's ladder uses |dt|).
+    end_time = t_end - sc.t_start if t_end is not None else (steps or sc.steps) * abs(sc.dt)
+    if not end_time > 0:
+        fail(f"--t-end {t_end:g} is not after the scenario's t_start = {sc.t_start:g}")
     try:
         names = [canonical_name(n) for n in split_list(integrators)] or [spec.name for spec in INTEGRATORS]
         if rebound_schemes and rebound_schemes.strip().lower() == "none":
@@ -88,14 +92,15 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
             schemes = [s for s in (parse_rebound_scheme(t) for t in split_list(rebound_schemes)) if s.fixed_step]
         else:
             schemes = default_rebound(names, sc.masses)
-        rungs = ladder(sc.dt, parse_dts(dts))
+        rungs = ladder(abs(sc.dt), parse_dts(dts))
     except ValueError as err:
         fail(str(err))
     if any(dt > end_time for dt in rungs):
         fail(f"every dt must be at most the end time T = {end_time:g}; got {max(rungs):g}")
     prepare_outdir(outdir, OUTPUT_FILES, force)
     say = (lambda _m: None) if quiet else click.echo
-    say(f"orbitsim convergence: {sc.name}, T = {end_time:g}, dt ladder {', '.join(f'{d:g}' for d in rungs)}")
+    span = f"T = {end_time:g}" + (f" from t_start = {sc.t_start:g}" if sc.t_start else "")
+    say(f"orbitsim convergence: {sc.name}, {span}, dt ladder {', '.join(f'{d:g}' for d in rungs)}")
     result = run_convergence(sc, integrators=names, rebound=schemes, dts=rungs, end_time=end_time, progress=say)
     paths = write_convergence_outputs(result, outdir, command_line(ctx), order_tolerance)
     for s in result.series:

@@ -53,14 +53,12 @@ def command(trace: str, fmt: str, output: str, sample: int, positions: bool, for
     targets = [Path(output)] + ([export.positions_csv_path(output)] if positions else [])
     for target in targets:
         _check_target(target, trace, force)
-    if fmt == "rebound":
-        note = export.export_rebound(trace, output, sample)
-        if note:
-            warn(note)
-    elif fmt == "scenario":
-        export.export_scenario(trace, output, sample)
-    else:
+    if fmt == "csv":
         export.export_csv(trace, output, positions=positions)
+        return
+    note = (export.export_rebound if fmt == "rebound" else export.export_scenario)(trace, output, sample)
+    if note:
+        warn(note)
 
 
 def _check_target(target: Path, trace: str, force: bool) -> None:

@@ -48,7 +48,7 @@ def command(trace: str, show_scenario: bool) -> None:
     if is_checkpoint_request(trace):
         _checkpoint_info(trace, show_scenario)
         return
-    from orbitsim.checkpoint.report import trace_checkpoint_lines
+    from orbitsim.checkpoint.report import history_lines, trace_checkpoint_lines
     from orbitsim.io.lock import current_holder, describe_holder
     from orbitsim.io.trace import open_trace_summary
 
@@ -73,11 +73,13 @@ def command(trace: str, show_scenario: bool) -> None:
     click.echo(f"bodies:   {summary['n_bodies']}")
     for line in sections:  # none for a trace without events or elements
         click.echo(line)
+    for line in history_lines(attrs.get("integrator_history", "")):
+        click.echo(line)
     click.echo("datasets:")
     for name, shape in sorted(summary["shapes"].items()):
         click.echo(f"  {name:<20} {shape}")
     click.echo("attributes:")
-    rest = sorted(k for k in attrs if k not in _HEADER)
+    rest = sorted(k for k in attrs if k not in _HEADER and k != "integrator_history")
     width = max((len(k) for k in rest), default=0)
     for key in rest:
         value = f"<{len(attrs[key])} characters of YAML; see --scenario>" if key == "scenario" else _show(attrs[key])

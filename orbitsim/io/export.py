@@ -5,7 +5,8 @@
 * :func:`export_scenario`: the stored (fully resolved) scenario with its initial state replaced by
   one sample's, for the steps left to the original end. Same integrator, settings, dt, units and
   sampling, floats written as their shortest round-trip text, so for a fixed-dt scheme the new run
-  from a sample continues the original bit for bit. Its ``t_start`` is the sample's time, so its
+  from a sample continues the original bit for bit (``wisdom_holman`` through the map's own
+  coordinates, :mod:`orbitsim.scenario.integrator_state`). Its ``t_start`` is the sample's time, so its
   samples continue the original's times (``t0 + n * dt`` against the original's
   ``t_start + (K + n) * dt``: equal to round-off, a few ulp, not bit for bit).
 * :func:`export_csv`: the per-sample series, and with ``positions`` every body's state in long format.
@@ -93,7 +94,23 @@ def stored_scenario_of(state: SampleState, where: str) -> Any:
     text = state.attrs.get("scenario")
     if not isinstance(text, str) or not text:
         raise TraceError(f"{where}: the trace stores no scenario")
+    _refuse_before_a_switch(state, where)
     return stored_scenario(text, str(state.attrs.get("scenario_sha256", "")), Path(where))
+
+
+def _refuse_before_a_switch(state: SampleState, where: str) -> None:
+    """The stored scenario is the run's scheme and dt after its last ``run --from`` switch: a sample
+    taken before that was made by another (``integrator_history``), which one scenario cannot hold."""
+    import json
+
+    history = json.loads(state.attrs.get("integrator_history") or "[]")
+    later = [record for record in history if state.step < record["step"]]
+    if later:
+        was, last = later[0]["from"], history[-1]
+        raise TraceError(f"{where}: sample {state.index} (step {state.step}) was taken by {was['integrator']} at "
+                         f"dt = {was['dt']:g}, before the run switched to {last['to']['integrator']} at dt = "
+                         f"{last['to']['dt']:g} at step {last['step']} (run --from); export a sample from step "
+                         f"{last['step']} on")
 
 
 def export_rebound(trace: str | os.PathLike[str], output: str | os.PathLike[str], sample: int = -1) -> str:
@@ -107,11 +124,14 @@ def export_rebound(trace: str | os.PathLike[str], output: str | os.PathLike[str]
                               integrator=scenario.integrator, settings=scenario.integrator_settings)
 
 
-def export_scenario(trace: str | os.PathLike[str], output: str | os.PathLike[str], sample: int = -1) -> None:
-    """Write the scenario that continues ``trace`` from sample ``sample`` (see the module docstring).
+def export_scenario(trace: str | os.PathLike[str], output: str | os.PathLike[str], sample: int = -1) -> str:
+    """Write the scenario that continues ``trace`` from sample ``sample`` (see the module docstring);
+    returns a note ('' when none).
 
     It runs the steps left to the original run's end (or its end time, for an adaptive scheme);
-    from the last sample, as many again as the original run.
+    from the last sample, as many again as the original run. For ``wisdom_holman`` it also holds
+    the map's own coordinates at the sample (:mod:`orbitsim.scenario.integrator_state`), so it
+    continues bit for bit; where they cannot be had the note says it continues to round-off only.
     """
     where = os.fspath(trace)
     state = read_sample(where, sample)
@@ -127,8 +147,38 @@ def export_scenario(trace: str | os.PathLike[str], output: str | os.PathLike[str
     else:
         left_steps = scenario.steps - state.step
         changes["steps"] = left_steps if left_steps > 0 else scenario.steps
-    text = scenario.with_overrides(**changes).to_yaml()
+    following = scenario.with_overrides(**changes)
+    following, note = _with_integrator_state(following, scenario, where, state)
+    text = following.to_yaml()
     write_atomically(output, lambda f: f.write(text))
+    return note
+
+
+def _with_integrator_state(scenario: Any, stored: Any, where: str, state: SampleState) -> tuple[Any, str]:
+    """``scenario`` with the scheme's own coordinates at ``state``, when it keeps any: from the trace's
+    checkpoint (the last sample), else by running the stored scenario again to the sample's step."""
+    from orbitsim.scenario.integrator_state import (
+        STATEFUL,
+        state_by_replay,
+        state_fingerprint,
+        state_from_checkpoint,
+    )
+
+    if scenario.integrator not in STATEFUL:
+        return scenario, ""
+    from orbitsim.checkpoint.plan import read_trace_state
+
+    checkpoint = read_trace_state(Path(where)).checkpoint
+    kept = None if checkpoint is None else state_from_checkpoint(scenario, checkpoint, state.step, state.positions,
+                                                                 state.velocities)
+    if kept is None and not state.attrs.get("integrator_history"):  # one run of the stored scenario: replay it
+        kept = state_by_replay(stored, state.step, state.positions, state.velocities)
+    if kept is None:
+        return scenario, (f"{scenario.integrator} steps in its own coordinates, which neither the trace's checkpoint "
+                          f"nor a rerun of its scenario gives for sample {state.index} (the run changed scheme or dt, "
+                          "or was continued from another state): the exported scenario starts from the Cartesian "
+                          "state and continues the run to round-off, not bit for bit")
+    return scenario.with_overrides(integrator_state={"of": state_fingerprint(scenario), **kept}), ""
 
 
 def positions_csv_path(output: str | os.PathLike[str]) -> Path:

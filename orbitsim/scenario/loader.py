@@ -22,7 +22,7 @@ from orbitsim.scenario.yamlio import parse_yaml
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "t_start", "steps", "t_end", "output", "softening",
-            "frame", "bodies", "ephemeris", "generator", "events", "forces",
+            "frame", "bodies", "ephemeris", "generator", "events", "forces", "integrator_state",
             "angles")  # angles: read with the bodies (orbitsim.scenario.bodies)
 OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary")
 CHECKPOINT_KEYS = ("every", "seconds")
@@ -206,7 +206,8 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                         names=tuple(bodies.names), masses=m, positions=x, velocities=v, source=source,
                         checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, radii=radii,
                         events=events, record_elements=elements, elements_primary=primary,
-                        forces=top.raw("forces", ()), t_start=t_start)
+                        forces=top.raw("forces", ()), t_start=t_start,
+                        integrator_state=top.raw("integrator_state", None))
     scenario.remember_origins(bodies.origins)
     scenario.remember_input(bodies.notes)  # angle unit and axes, for `orbitsim validate`
     return scenario

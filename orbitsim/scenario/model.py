@@ -18,20 +18,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from orbitsim.scenario.bodies import check_coincident, check_finite_state
-from orbitsim.scenario.direction import check_adaptive_t_end, check_direction, check_dt, check_t_end
+from orbitsim.scenario.direction import check_direction
 from orbitsim.scenario.errors import ScenarioError
-from orbitsim.scenario.fields import check_count, check_number, describe
+from orbitsim.scenario.fields import check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
-from orbitsim.scenario.timing import (
-    MAX_STEPS,
-    adaptive_integrator,
-    check_t_start,
-    resolve_grid,
-    resolve_steps,
-    run_span,
-    steps_limit_error,
-)
+from orbitsim.scenario.timing import adaptive_integrator, resolve_steps, run_span
 
 if TYPE_CHECKING:
     from orbitsim.sampling import SamplePlan
@@ -131,6 +123,7 @@ class Scenario:
     elements_primary: str = "heaviest"
     forces: tuple[dict[str, Any], ...] = ()
     t_start: float = 0.0  # time of step 0: sample n is at t_start + n * dt (orbitsim.scenario.timing)
+    integrator_state: dict[str, Any] | None = None  # a scheme's own coordinates (orbitsim.scenario.integrator_state)
 
     def __post_init__(self) -> None:
         try:
@@ -170,6 +163,10 @@ class Scenario:
         self._validate_events()
         self._validate_forces()
         check_direction(self.integrator, self.dt, self.events, self.forces)  # dt < 0: backwards, where possible
+        if self.integrator_state is not None:
+            from orbitsim.scenario.integrator_state import check_integrator_state
+
+            self._set("integrator_state", check_integrator_state(self.integrator_state, self.n_bodies))
 
     def _validate_forces(self) -> None:
         """Resolve the forces (again: a new integrator or new bodies may not fit them) and check that
@@ -237,56 +234,10 @@ class Scenario:
                 raise ScenarioError(str(err), key="bodies") from None
 
     def _validate_time(self) -> None:
-        self._set("dt", check_dt(self.dt))  # < 0 runs backwards (orbitsim.scenario.direction)
-        self._set("steps", check_count(self.steps, "steps"))
-        self._set("t_start", check_t_start(self.t_start))
-        if self.adaptive:
-            self._validate_adaptive_time()
-            return
-        if not math.isfinite(self.t_start + self.steps * self.dt):
-            raise ScenarioError(f"steps * dt = {self.steps} * {self.dt:g} overflows float64: use a smaller dt "
-                                "(or other units)", key="dt")
-        if self.t_end is not None:
-            self._set("t_end", check_t_end(self.t_end, self.dt, self.t_start))
-            expected, _ = resolve_steps(self.t_end, self.dt, self.t_start)
-            if expected != self.steps:
-                raise ScenarioError(f"steps = {self.steps} disagrees with t_end = {self.t_end:g} / dt = "
-                                    f"{self.dt:g} ({expected} whole steps): give only one", key="steps")
-        if self.every is not None and self.interval is not None:
-            raise ScenarioError("give only one of every or interval, not both", key="output.interval")
-        if self.every is not None:
-            self._set("every", check_count(self.every, "output.every"))
-        if self.interval is not None:
-            self._set("interval", check_number(self.interval, "output.interval", positive=True))
-            if not self.interval / abs(self.dt) <= MAX_STEPS:  # sample numbers become steps of dt
-                raise steps_limit_error(f"output.interval / |dt| = {self.interval / abs(self.dt):.3g} steps",
-                                        "output.interval", "sample more often")
-        self._validate_checkpoint()
+        from orbitsim.scenario.time_checks import check_time
 
-    def _validate_adaptive_time(self) -> None:
-        """An adaptive scheme's run: ``t_end`` and ``output.interval`` make its grid, ``dt`` is
-        only the first trial step, and ``steps`` counts output intervals."""
-        name = self.integrator
-        if self.t_end is None:
-            raise ScenarioError(f"{name} chooses its own steps: give t_end (the end time), not steps", key="steps")
-        self._set("t_end", check_adaptive_t_end(self.t_end, self.t_start))
-        if self.every is not None:
-            raise ScenarioError(f"{name} chooses its own steps, so samples are taken by time: give "
-                                "output.interval instead of output.every", key="output.every")
-        if self.interval is not None:
-            self._set("interval", check_number(self.interval, "output.interval", positive=True))
-        expected = resolve_grid(run_span(self.t_end, self.t_start), self.grid_dt)
-        if expected != self.steps:
-            raise ScenarioError(f"steps = {self.steps} disagrees with t_end = {self.t_end:g} / output.interval = "
-                                f"{self.grid_dt:g} ({expected} output intervals)", key="steps")
-        self._validate_checkpoint()
-
-    def _validate_checkpoint(self) -> None:
-        every, seconds = self.checkpoint_every, self.checkpoint_seconds
-        if every is not None:
-            self._set("checkpoint_every", check_count(every, "output.checkpoint.every"))
-        if seconds is not None:
-            self._set("checkpoint_seconds", check_number(seconds, "output.checkpoint.seconds", positive=True))
+        for name, value in check_time(self).items():
+            self._set(name, value)
 
     # -- derived quantities ------------------------------------------------------------------
 
@@ -367,6 +318,10 @@ class Scenario:
     def notes(self) -> list[str]:
         """Things a user should know before running, one line each (may be empty)."""
         notes = []
+        if self.integrator_state is not None:
+            from orbitsim.scenario.integrator_state import mismatch_note
+
+            notes += [note for note in (mismatch_note(self),) if note]
         if self.dissipative:
             notes.append("migration adds or removes energy on purpose: the energy error measures it, not the "
                          "integrator's error")

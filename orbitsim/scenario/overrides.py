@@ -22,7 +22,9 @@ __all__ = ["OVERRIDABLE", "resolve_overrides"]
 OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "t_start", "steps", "t_end", "every",
                "interval", "record_positions", "softening", "G", "names", "masses", "positions",
                "velocities", "source", "checkpoint_every", "checkpoint_seconds", "radii", "events", "record_elements",
-               "elements_primary", "forces")
+               "elements_primary", "forces", "integrator_state")
+#: What an integrator state belongs to (orbitsim.scenario.integrator_state): a change drops the state.
+_STATE_OF = ("integrator", "integrator_settings", "dt", "G", "softening", "names", "masses", "positions", "velocities")
 
 
 def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, Any]:
@@ -42,6 +44,8 @@ def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, 
         _resolve_time_change(scenario, changes)
     except ScenarioError as err:
         raise err.located(scenario.source) from None
+    if scenario.integrator_state is not None and "integrator_state" not in changes and set(_STATE_OF) & changes.keys():
+        changes["integrator_state"] = None  # it belonged to the old bits: the run starts from the Cartesian bodies
     if "every" in changes:
         changes["interval"] = None
     elif "interval" in changes:

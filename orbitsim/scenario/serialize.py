@@ -51,6 +51,12 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         doc["events"] = s.events.to_dict()
     if s.forces:  # resolved: c, source and spin axis explicit, so the text says what ran
         doc["forces"] = [dict(entry) for entry in s.forces]
+    if s.integrator_state is not None:  # after the bodies it belongs to (orbitsim.scenario.integrator_state)
+        from orbitsim.scenario.integrator_state import state_to_dict
+
+        doc["bodies"] = bodies
+        doc["integrator_state"] = state_to_dict(s.integrator_state)
+        return doc
     doc["bodies"] = bodies
     return doc
 
@@ -59,6 +65,7 @@ def scenario_to_yaml(s: Scenario) -> str:
     """The fully resolved scenario as YAML text; loading it reproduces the same bits."""
     doc = scenario_to_dict(s)
     del doc["bodies"]  # written row by row below: far faster than the generic writer
+    state = doc.pop("integrator_state", None)
     lines = ["# orbitsim scenario, fully resolved: explicit Cartesian bodies, whole steps."]
     for key, value in doc.items():
         if key in ("output", "events"):
@@ -77,4 +84,13 @@ def scenario_to_yaml(s: Scenario) -> str:
         r = f", r: {f(radii[k])}" if radii is not None else ""
         lines.append(f"  - {{name: {dump_value(name)}, m: {f(m)}, x: [{f(x[0])}, {f(x[1])}, {f(x[2])}], "
                      f"v: [{f(v[0])}, {f(v[1])}, {f(v[2])}]{r}}}")
+    if state is not None:
+        lines.append("# wisdom_holman's own coordinates at this state, so the run continues bit for bit; used")
+        lines.append("# only while every bit above that they belong to (`of`) is unchanged")
+        lines.append("integrator_state:")
+        lines.extend(f"  {k}: {dump_value(v)}" for k, v in state.items() if k not in ("mapping_positions",
+                                                                                   "mapping_velocities"))
+        for k in ("mapping_positions", "mapping_velocities"):
+            lines.append(f"  {k}:")
+            lines.extend(f"    - [{', '.join(f(c) for c in row)}]" for row in state[k])
     return "\n".join(lines) + "\n"
