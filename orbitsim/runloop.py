@@ -140,33 +140,28 @@ class RunLoop:
 
     def _make_simulation(self, threads: int | None) -> Simulation:
         from orbitsim.checkpoint.state import restore_state
-        from orbitsim.simulation import Simulation, scenario_forces
+        from orbitsim.scenario_simulation import scenario_simulation
 
         sc = self.scenario
-        masses, pos, vel, radii = sc.masses, sc.positions, sc.velocities, sc.radii
-        # A continuation keeps its checkpoint's clock (a `run --from` switch of dt moves it); a new run: t_start.
-        t0 = self.start_point.checkpoint.t0 if self.start_point is not None else sc.t_start
-        if self.start_point is not None:
-            state = self.start_point.checkpoint.state
-            pos, vel = state.pos.T, state.vel.T
-            if state.events:  # merges or removals may have changed the bodies: continue with those left
-                masses = state.events["final_masses"][state.events["alive"]]
-                radii = state.events["radii"]
         primary: str | int | None = None
         if sc.record_elements:
             primary = sc.elements_primary
             primary = sc.names.index(primary) if primary in sc.names else primary
-        sim = Simulation(masses.copy(), pos.copy(), vel.copy(), sc.integrator, sc.grid_dt, sc.G, sc.softening, t0,
-                         threads, sc.run_settings, events=sc.events, radii=radii, elements=primary,
-                         forces=scenario_forces(sc))
-        if self.start_point is not None and self.start_point.rebuild:
-            sim.steps_done = self.start_point.checkpoint.steps_done  # a new scheme: its work is made fresh
-        elif self.start_point is not None:
-            restore_state(sim, self.start_point.checkpoint.state)
-        elif sc.integrator_state is not None:  # an exported scenario: the scheme's own coordinates at its start
-            from orbitsim.scenario.integrator_state import install
-
-            install(sim, sc)
+        if self.start_point is None:
+            return scenario_simulation(sc, threads, elements=primary)
+        # A continuation keeps its checkpoint's clock (a `run --from` switch of dt moves it) and state.
+        ckpt = self.start_point.checkpoint
+        state = ckpt.state
+        masses, radii = sc.masses, sc.radii
+        if state.events:  # merges or removals may have changed the bodies: continue with those left
+            masses = state.events["final_masses"][state.events["alive"]]
+            radii = state.events["radii"]
+        sim = scenario_simulation(sc, threads, elements=primary, start=(masses, state.pos.T, state.vel.T, radii,
+                                                                        ckpt.t0))
+        if self.start_point.rebuild:
+            sim.steps_done = ckpt.steps_done  # a new scheme: its work is made fresh
+        else:
+            restore_state(sim, state)
         return sim
 
     def _take(self, chunk: SampleChunk) -> None:

@@ -38,7 +38,7 @@ from orbitsim.sampling import (
 
 __all__ = ["MAX_BUFFER_BYTES", "TARGET_CALL_SECONDS", "SampleChunk", "Simulation", "SimulationError",
            "SimulationResult", "relative_energy_error", "sample_steps_every", "sample_steps_interval",
-           "scenario_forces", "simulate"]
+           "simulate"]
 
 
 #: Upper bound on the sample buffer of one call, so recording positions stays flat in memory.
@@ -62,16 +62,6 @@ def _as_state(masses: Any, positions: Any, velocities: Any) -> tuple[np.ndarray,
     # Always copies: the integrators work in place, and a caller's (N, 3) view of a (3, N) array
     # (e.g. Simulation.state() of another run, transposed back) must not be overwritten.
     return m.copy(), np.array(x.T, order="C"), np.array(v.T, order="C")
-
-
-def scenario_forces(scenario: Any) -> Any:
-    """A scenario's ForceSet (:func:`orbitsim.forces.schema.force_set`), or None without forces;
-    the forces package is imported only when there are some."""
-    if not getattr(scenario, "forces", ()):
-        return None
-    from orbitsim.forces.schema import force_set
-
-    return force_set(scenario)
 
 
 @dataclass

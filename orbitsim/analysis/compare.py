@@ -163,7 +163,8 @@ def run_orbitsim(scenario: Any, integrator: str, sample_steps: np.ndarray, *, dt
     the run's own, comparable with REBOUND's, and not Numba's start-up.
     """
     from orbitsim.integrators.registry import get_spec
-    from orbitsim.simulation import scenario_forces, simulate
+    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.simulation import simulate
 
     spec = get_spec(integrator)
     step_dt = float(scenario.dt if dt is None else dt)

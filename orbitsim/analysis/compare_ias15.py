@@ -99,7 +99,8 @@ def fixed_step_plan(scenario: Any, times: np.ndarray) -> np.ndarray:
 def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) -> RunRecord:
     """orbitsim's ias15 on the comparison's grid, timed after a warm-up that loads its kernels."""
     from orbitsim.results import collect_result
-    from orbitsim.simulation import Simulation, scenario_forces
+    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.simulation import Simulation
 
     grid_dt, t_end, points, plan, _ = output_grid(scenario)
     run_settings = {**settings, "adaptive": True, "first_dt": float(scenario.dt), "t_end": t_end}

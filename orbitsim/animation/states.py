@@ -160,12 +160,10 @@ def _trace_states(source: Source, wanted: np.ndarray) -> tuple[np.ndarray, np.nd
 def _scenario_states(scenario: Any, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, str]:
     """Step the scenario's engine to each of the ``wanted`` steps, recording the states there."""
     from orbitsim.results import energy_scale, relative_energy_error
-    from orbitsim.simulation import Simulation, scenario_forces
+    from orbitsim.scenario_simulation import scenario_simulation
 
     sc = scenario
-    sim = Simulation(sc.masses.copy(), sc.positions.copy(), sc.velocities.copy(), sc.integrator, sc.grid_dt, sc.G,
-                     sc.softening, 0.0, None, sc.run_settings, events=sc.events, radii=sc.radii,
-                     forces=scenario_forces(sc))
+    sim = scenario_simulation(sc)  # the engine `orbitsim run` steps, so the frames show the run's states
     positions = np.empty((wanted.size, sc.n_bodies, 3))
     energy = np.empty(wanted.size)
     done, scale = 0, 1.0

@@ -318,6 +318,35 @@ def check_coincident(x: np.ndarray, names: list[str] | tuple[str, ...], origins:
                             "the force between them would be infinite; move one or set softening > 0", key=key)
 
 
+def check_body_arrays(masses: Any, positions: Any, velocities: Any,
+                      names: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]]:
+    """A scenario's bodies as float64 arrays, (N,) masses and (N, 3) states, and N unique names.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``bodies``, ``names`` or the array with a bad value.
+    """
+    try:
+        m = np.array(masses, dtype=np.float64).reshape(-1)
+        x = np.array(positions, dtype=np.float64)
+        v = np.array(velocities, dtype=np.float64)
+        names = tuple(names)
+    except (TypeError, ValueError) as err:
+        raise ScenarioError(f"bodies must be numeric arrays and a sequence of names ({err})", key="bodies") from None
+    n = m.shape[0]
+    if n < 1 or x.shape != (n, 3) or v.shape != (n, 3):
+        raise ScenarioError(f"need N >= 1 bodies with positions and velocities of shape (N, 3); got masses "
+                            f"{m.shape}, positions {x.shape}, velocities {v.shape}", key="bodies")
+    check_finite_state(m, x, v)
+    if len(names) != n or not all(isinstance(s, str) and s.strip() for s in names):
+        raise ScenarioError(f"need {n} non-empty body names, got {len(names)}", key="names")
+    if len(set(names)) != n:
+        dup = next(s for i, s in enumerate(names) if s in names[:i])
+        raise ScenarioError(f"duplicate body name {dup!r}; names must be unique", key="names")
+    return m, x, v, names
+
+
 def check_finite_state(m: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
     """Last line of defence for states built in code: finite values, masses >= 0."""
     for label, arr in (("masses", m), ("positions", x), ("velocities", v)):

@@ -31,8 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from orbitsim.scenario.errors import ScenarioError
-from orbitsim.scenario.fields import describe
+from orbitsim.scenario.fields import Fields, describe
 
 if TYPE_CHECKING:
     from orbitsim.io.checkpoint import Checkpoint
@@ -70,31 +69,23 @@ def check_integrator_state(value: Any, n_bodies: int) -> dict[str, Any] | None:
     """
     if value is None:
         return None
-    key = "integrator_state"
-    if not isinstance(value, Mapping):
-        raise ScenarioError(f"expected a mapping with {', '.join(KEYS)} (as orbitsim export writes it), got "
-                            f"{describe(value)}", key=key)
-    unknown = sorted(set(value) - set(KEYS))
-    if unknown:
-        raise ScenarioError(f"unknown key {unknown[0]!r}; valid: {', '.join(KEYS)}", key=f"{key}.{unknown[0]}")
-    missing = [k for k in KEYS if k not in value]
-    if missing:
-        raise ScenarioError(f"missing {missing[0]!r}: an integrator_state needs {', '.join(KEYS)}", key=key)
-    of = value["of"]
-    if not isinstance(of, str) or not _SHA256.match(of):
-        raise ScenarioError(f"expected a SHA-256 (64 hex digits), got {describe(of)}", key=f"{key}.of")
-    phase = value["phase"]
-    if isinstance(phase, bool) or not isinstance(phase, int | np.integer) or int(phase) not in _PHASES:
-        raise ScenarioError(f"expected 1 or 2, got {describe(phase)}", key=f"{key}.phase")
-    state: dict[str, Any] = {"of": of, "phase": int(phase)}
+    fields = Fields(value, "integrator_state", KEYS, "integrator_state (as orbitsim export writes it)")
+    of = fields.string("of")
+    if not _SHA256.match(of):
+        raise fields.error("of", f"expected a SHA-256 (64 hex digits), got {describe(of)}")
+    phase = fields.integer("phase")
+    if phase not in _PHASES:
+        raise fields.error("phase", f"expected 1 or 2, got {phase}")
+    state: dict[str, Any] = {"of": of, "phase": phase}
     for name in _ARRAYS:
+        raw = fields.raw(name)
         try:
-            array = np.array(value[name], dtype=np.float64)
+            array = np.array(raw, dtype=np.float64)
         except (TypeError, ValueError):
             array = None
         if array is None or array.shape != (n_bodies, 3) or not np.all(np.isfinite(array)):
-            raise ScenarioError(f"expected {n_bodies} rows of 3 finite numbers (one per body), got "
-                                f"{describe(value[name])}", key=f"{key}.{name}")
+            raise fields.error(name, f"expected {n_bodies} rows of 3 finite numbers (one per body), got "
+                                     f"{describe(raw)}")
         state[name] = array
     return state
 
@@ -165,12 +156,9 @@ def state_by_replay(s: Scenario, step: int, positions: np.ndarray, velocities: n
     exact bits (a trace that was not one run of ``s``)."""
     if s.integrator not in STATEFUL or not 0 <= step <= s.steps:
         return None
-    from orbitsim.simulation import Simulation, scenario_forces
+    from orbitsim.scenario_simulation import scenario_simulation
 
-    sim = Simulation(s.masses.copy(), s.positions.copy(), s.velocities.copy(), s.integrator, s.grid_dt, s.G,
-                     s.softening, s.t_start, None, s.run_settings, events=s.events, radii=s.radii,
-                     forces=scenario_forces(s))
-    install(sim, s)
+    sim = scenario_simulation(s)  # the run that wrote the trace, from s's own integrator state if it has one
     for _ in sim.chunks(np.array([step], dtype=np.int64), record_positions=False):
         pass
     if sim.steps_done != step or sim.n != positions.shape[0]:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from orbitsim.scenario.bodies import check_coincident, check_finite_state
+from orbitsim.scenario.bodies import check_body_arrays, check_coincident
 from orbitsim.scenario.direction import check_direction
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, describe
@@ -192,25 +192,8 @@ class Scenario:
         check_elements_output(self.record_elements, self.elements_primary, self.names)
 
     def _validate_bodies(self) -> None:
-        try:
-            m = np.array(self.masses, dtype=np.float64).reshape(-1)
-            x = np.array(self.positions, dtype=np.float64)
-            v = np.array(self.velocities, dtype=np.float64)
-            names = tuple(self.names)
-        except (TypeError, ValueError) as err:
-            raise ScenarioError(f"bodies must be numeric arrays and a sequence of names ({err})",
-                                key="bodies") from None
-        n = m.shape[0]
-        if n < 1 or x.shape != (n, 3) or v.shape != (n, 3):
-            raise ScenarioError(f"need N >= 1 bodies with positions and velocities of shape (N, 3); got masses "
-                                f"{m.shape}, positions {x.shape}, velocities {v.shape}", key="bodies")
-        check_finite_state(m, x, v)
-        if len(names) != n or not all(isinstance(s, str) and s.strip() for s in names):
-            raise ScenarioError(f"need {n} non-empty body names, got {len(names)}", key="names")
-        if len(set(names)) != n:
-            dup = next(s for i, s in enumerate(names) if s in names[:i])
-            raise ScenarioError(f"duplicate body name {dup!r}; names must be unique", key="names")
-        for attr, value in (("masses", m), ("positions", x), ("velocities", v), ("names", names)):
+        arrays = check_body_arrays(self.masses, self.positions, self.velocities, self.names)
+        for attr, value in zip(("masses", "positions", "velocities", "names"), arrays, strict=True):
             self._set(attr, value)
 
     def _validate_integrator(self) -> None:
