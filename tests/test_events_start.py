@@ -120,7 +120,7 @@ def test_overlap_with_merge_is_a_collision_at_step_0(tmp_path: Path) -> None:
 def test_overlap_with_halt_ends_the_run_at_step_0(tmp_path: Path) -> None:
     scenario = write(tmp_path, "events: {collisions: {resolve: halt}}\n")
     out = tmp_path / "inside.h5"
-    code, stdout, stderr = invoke("run", str(scenario), "-o", str(out))
+    code, _, stderr = invoke("run", str(scenario), "-o", str(out))
     assert code == 6
     assert "halted at t = 0 (step 0)" in stderr and "sun and planet touch" in stderr
     with h5py.File(out, "r") as f:

@@ -63,7 +63,12 @@ class Watcher:
         self.initial_radii = self.radii.copy()
         self.final_radii = self.radii.copy()
         self.halted: Event | None = None
+        # the scheme and its settings (defaults filled in), which word an unresolved step's fix
+        self.scheme = sim.spec.name
+        self.settings = {**getattr(sim.module, "SETTINGS", {}), **sim.settings}
         self.watch = build_watch(config, sim.m, self.radii, sim.G)
+        self._handoff: tuple[np.ndarray, np.ndarray, int] | None = None  # of a step whose merges are taken out
+        self._kept = np.arange(n)
 
     # -- the state a run starts from ---------------------------------------------------------
 
@@ -230,6 +235,8 @@ class Watcher:
         step = sim.steps_done
         gone = np.zeros(len(sim.m), dtype=bool)
         into = np.arange(len(sim.m))
+        handoff = getattr(sim.module, "handoff", None)
+        self._handoff = handoff(sim.work) if handoff is not None else None  # the step's, for _check_step
         for row in rows:
             keep, lose = int(row[H_KEEP]), int(row[H_LOSE])
             gone[lose], into[lose] = True, keep
@@ -250,7 +257,12 @@ class Watcher:
         from orbitsim.events.kernels import after_step
 
         self.watch[9][wl.STOP] = wl.STOP_NONE
-        after_step(self.watch, sim.pos, sim.vel, sim.m, sim.steps_done, sim.t0, sim.dt)
+        handoff, self._handoff = self._handoff, None
+        if handoff is not None:  # what the step handed to its own sub-steps, for the bodies left
+            keep = self._kept
+            pairs, bodies, flags = handoff
+            handoff = (np.ascontiguousarray(pairs[np.ix_(keep, keep)]), bodies[keep].copy(), flags)
+        after_step(self.watch, sim.pos, sim.vel, sim.m, sim.steps_done, sim.t0, sim.dt, handoff)
         stop = int(self.watch[9][wl.STOP])
         self.watch[9][wl.STOP] = wl.STOP_NONE
         return stop
@@ -261,6 +273,7 @@ class Watcher:
         integrator made and accounted for), the energy their removal changes goes to the offset."""
         before = 0.0 if husks else sim.total_energy()
         keep = np.flatnonzero(~gone)
+        self._kept = keep
         for k in np.flatnonzero(gone):
             orig = int(self.alive[k])
             self.removed_step[orig], self.removed_time[orig] = step, time
@@ -287,7 +300,7 @@ class Watcher:
         fates = {"radii": self.initial_radii.copy(), "final_radii": self.final_radii.copy(),
                  "final_masses": self.final_masses.copy(), "removed_step": self.removed_step.copy(),
                  "removed_time": self.removed_time.copy(), "merged_into": self.merged_into.copy()}
-        return RunEvents(tuple(events), fates)
+        return RunEvents(tuple(events), fates, self.scheme, self.settings)
 
     # -- checkpoints -------------------------------------------------------------------------
 
