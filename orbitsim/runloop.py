@@ -60,6 +60,7 @@ class RunSummary:
     resumable: bool = False
     events: str = ""
     scheme_counters: dict[str, Any] | None = None  # an adaptive scheme's own steps (ias15)
+    unresolved_warning: str = ""  # a step too long for an orbit, seen at the samples of a run without events
 
     @property
     def steps_per_s(self) -> float:
@@ -79,6 +80,7 @@ class RunLoop:
         self.progress, self.on_chunk = progress, on_chunk
         self.start_point = start
         self.sim: Simulation | None = None
+        self.step_check: Any = None  # orbitsim.events.sampled.StepCheck, for a run without events
         self.samples = 0
         self.last_time = math.nan
         self.last_step = 0
@@ -112,6 +114,9 @@ class RunLoop:
         if stopper.requested():
             return
         self.sim = self._make_simulation(threads)
+        from orbitsim.events.sampled import step_check
+
+        self.step_check = step_check(self.scenario, self.sim)  # looks at the state between calls only
         self.safe = True
         with stopper.critical():
             self.sink.set_attrs(threads=int(self.sim.threads_used))  # known only once numba is set up
@@ -181,6 +186,8 @@ class RunLoop:
             self.last_step = int(chunk.step[-1])
             if self.on_chunk:
                 self.on_chunk(self.sim, chunk)
+        if self.step_check is not None:
+            self.step_check.look(self.sim)
         if self.energy_failure is not None:  # |dE/E| is inf (or nan) from here: never a finite number
             bad = self.energy_failure[2]
             self.max_err = self._energy_error(np.array([bad])) if self.e0 is not None else math.nan
@@ -261,6 +268,9 @@ class RunLoop:
         scheme_counters = counters(self.sim.work) if counters is not None else None
         if scheme_counters is not None:  # an adaptive scheme's own steps (accepted, rejected, force evaluations)
             self.sink.set_attrs(**{f"{self.sim.spec.name}_{key}": value for key, value in scheme_counters.items()})
+        unresolved = self.step_check.warning if self.step_check is not None else ""
+        if unresolved:
+            self.sink.set_attrs(unresolved_warning=unresolved)
         outcome = watcher.outcome(final_run=status != "interrupted") if watcher is not None else None
         self.sink.close(status, steps_done=steps_done, wall_time_s=wall, message=message, final=final,
                         events=outcome)
@@ -271,7 +281,7 @@ class RunLoop:
             threads=int(self.sim.threads_used) if self.sim else 0, message=message,
             resumable=status == "interrupted" and final is not None,
             events=outcome.summary(self.scenario.names) if outcome is not None else "",
-            scheme_counters=scheme_counters)
+            scheme_counters=scheme_counters, unresolved_warning=unresolved)
 
     def _divergence_message(self) -> str:
         if self.energy_failure is not None:
