@@ -109,3 +109,39 @@ def test_the_fix_is_worded_for_the_scheme() -> None:
     assert unresolved_fix(between, "ias15", {"epsilon": 1e-9, "adaptive": True}) == (
         "ias15 chose a step longer than 0.000125 here: lower its epsilon (now 1e-09)")
     assert unresolved_fix(between, "ias15", {"adaptive": False}) == "use dt <= 0.000125"  # constant steps of dt
+
+
+def test_the_check_leaves_out_exactly_what_the_handoff_names() -> None:
+    """The kernel's rule (orbitsim.events.bodies.handed_over), step by step: a star, a massive
+    body 1 close to body 2 (each other's attractor, a step far too long for them), and a massless
+    body 3 on a tight orbit about the star (also far too long). What a handoff names is not judged."""
+    import numpy as np
+
+    from orbitsim.events.bodies import HAND_MASSLESS_KEPLER, HAND_WHOLE_STEP
+    from orbitsim.events.config import EventsConfig
+    from orbitsim.events.kernels import after_step
+    from orbitsim.events.watch import build_watch, drain
+
+    m = np.array([1.0, 1e-3, 1e-3, 0.0])
+    pos = np.ascontiguousarray(np.array([[0.0, 1.0, 1.001, 0.01], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]))
+    vel = np.ascontiguousarray(np.array([[0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 1.5, 10.0], [0.0, 0.0, 0.0, 0.0]]))
+    n = len(m)
+
+    def judged(handoff: Any) -> list[tuple[int, int]]:
+        watch = build_watch(EventsConfig(), m, np.zeros(n), 1.0)
+        watch[3][0], watch[3][1] = pos, vel  # the step "started" where it ended: no pericentre passed
+        after_step(watch, pos, vel, m, 1, 0.0, 0.1, handoff)
+        events, _ = drain(watch, np.arange(n))
+        return sorted((e.i, e.j) for e in events if e.kind == "unresolved")
+
+    none = (np.zeros((n, n), dtype=np.uint8), np.zeros(n, dtype=np.int64), 0)
+    assert judged(None) == [(1, 2), (3, 0)]  # the equal pair under its lower index; the massless body
+    assert judged(none) == [(1, 2), (3, 0)]  # an empty handoff changes nothing
+    pair = none[0].copy()
+    pair[1, 2] = 1
+    assert judged((pair, none[1], 0)) == [(3, 0)]  # the encounter went to Bulirsch-Stoer
+    bodies = none[1].copy()
+    bodies[3] = 1
+    assert judged((none[0], bodies, 0)) == [(1, 2)]  # body 3's orbit about body 0 went to it
+    assert judged((none[0], none[1], HAND_MASSLESS_KEPLER)) == [(1, 2)]  # a massless body's Kepler drift
+    assert judged((none[0], none[1], HAND_WHOLE_STEP)) == []  # the whole step did
