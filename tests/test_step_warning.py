@@ -181,16 +181,16 @@ def test_the_pairs_examined_stay_within_the_budget(monkeypatch: pytest.MonkeyPat
     """The mechanism that bounds the check's cost: pairs examined <= FREE_PAIRS + 1/PAIR_SHARE of
     the pairs the steps visited (counted, not timed). The state is looked at after every step of
     the count here; a run looks once per chunk of samples."""
-    sc = scenario_from_dict({"name": "d", "integrator": "leapfrog", "dt": 1e-3, "steps": 400,
+    sc = scenario_from_dict({"name": "d", "integrator": "leapfrog", "dt": 1e-3, "steps": 4000,
                              "generator": {"kind": "disc", "n": 63, "seed": 1, "r_min": 1.0, "r_max": 2.0}})
     monkeypatch.setattr(sampled, "FREE_PAIRS", 2016 * 3)  # the first three states of 64 bodies
     sim = scenario_simulation(sc)
     check = sampled.step_check(sc, sim)
     assert check is not None and check.pairs_examined == 2016  # the start is checked
-    for step in range(1, 401):
+    for step in range(1, 4001):
         sim.steps_done = step  # as if the run had got there (the check reads only the count and the state)
         check.look(sim)
         assert check.pairs_examined <= sampled.FREE_PAIRS + step * 2016 // sampled.PAIR_SHARE
-    # 400 steps of leapfrog visit 400 x 2016 pairs (one force evaluation a step): 1/64 of that is
-    # 6.25 states' worth, plus the 3 free ones
-    assert check.pairs_examined == 2016 * 9 and check.warning == ""
+    # 4000 steps of leapfrog visit 4000 x 2016 pairs (one force evaluation a step): 1/512 of that is
+    # 7.8 states' worth, plus the 3 free ones
+    assert check.pairs_examined == 2016 * 10 and check.warning == ""
