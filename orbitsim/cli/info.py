@@ -9,15 +9,28 @@ from typing import Any
 import click
 
 from orbitsim.cli.errors import reports_errors
-from orbitsim.cli.options import trace_argument
+from orbitsim.cli.options import OneLineUsageError, trace_argument
 
 #: Events listed one per line; the rest are counted ("... N more"): a run can log thousands of
-#: encounters, and `info` is a glance, the whole table is in the trace.
+#: encounters, and `info` is a glance; `info --events` lists them all.
 SHOWN_EVENTS = 10
+#: ``--events KIND``: orbitsim.events.log.EVENT_KINDS, written out so that the CLI imports only click
+#: at start-up (a test checks that the two agree).
+EVENT_KIND_CHOICES = ("encounter", "collision", "escape", "unresolved", "lost")
 #: Attributes shown in the header; the rest are listed under "attributes".
 _HEADER = ("format", "format_version", "orbitsim_version", "status", "message", "scenario_name",
            "scenario_source", "scenario_sha256", "integrator", "integrator_settings", "dt", "steps_requested",
            "steps_done", "G", "softening", "units", "wall_time_s", "threads")
+
+
+class _EventKind(click.Choice):
+    """``--events [KIND]``; a trace's name where KIND goes (``info --events run.h5``) gets the fix."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if value in self.choices:
+            return value
+        raise OneLineUsageError(f"--events: {value!r} is not an event kind (all, {', '.join(EVENT_KIND_CHOICES)}); "
+                                "give the trace first: orbitsim info TRACE --events [KIND]")
 
 
 @click.command("info")
@@ -25,12 +38,17 @@ _HEADER = ("format", "format_version", "orbitsim_version", "status", "message", 
 @click.option("--scenario", "show_scenario", is_flag=True,
               help="Print only the fully resolved scenario stored in the trace, as YAML, to rerun it "
                    "exactly. Example: orbitsim info run.h5 --scenario > rerun.yaml")
+@click.option("--events", "events_kind", is_flag=False, flag_value="all", default=None, metavar="[KIND]",
+              type=_EventKind(["all", *EVENT_KIND_CHOICES]),
+              help="Print only the run's events, every one (info alone lists the first 10), or only those of "
+                   f"KIND ({', '.join(EVENT_KIND_CHOICES)}). Give it after the trace. "
+                   "Example: orbitsim info run.h5 --events collision")
 @reports_errors
-def command(trace: str, show_scenario: bool) -> None:
+def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
     """Show what is in TRACE.h5: status, run settings, samples, datasets and their shapes.
 
-    For a run with events: the count of each kind, the first 10 events, and
-    the bodies that left the run (merged or removed); for a run that recorded
+    For a run with events: the count of each kind, the first 10 events (--events lists them
+    all), and the bodies that left the run (merged or removed); for a run that recorded
     orbital elements, their primary and shape.
 
     Also its checkpoint: the state the run stopped in and whether `orbitsim resume` or
@@ -41,10 +59,16 @@ def command(trace: str, show_scenario: bool) -> None:
     Examples:
       orbitsim info two_body_circular.h5
       orbitsim info run.h5 --scenario > rerun.yaml && orbitsim run rerun.yaml -o rerun.h5
+      orbitsim info run.h5 --events collision
       orbitsim info long.h5.ckpt
     """
     from orbitsim.checkpoint.report import is_checkpoint_request
 
+    if events_kind is not None:
+        if show_scenario:
+            raise OneLineUsageError("--scenario and --events print different things; give one")
+        _list_events(trace, None if events_kind == "all" else events_kind)
+        return
     if is_checkpoint_request(trace):
         _checkpoint_info(trace, show_scenario)
         return
@@ -111,7 +135,7 @@ def _event_lines(path: str, n_bodies: int) -> list[str]:
         width = max((len(e.kind) for e in shown), default=0)
         lines += [f"  t = {format_time(e.time):<14} {e.kind:<{width}}  {e.details}" for e in shown]
         if total > len(shown):
-            lines.append(f"  ... {total - len(shown)} more (the trace's events table has them all)")
+            lines.append(f"  ... {total - len(shown)} more: orbitsim info {path} --events")
     if left is not None:
         lines.append(f"removed:  {len(left)} of {n_bodies} bodies left the run" if left else
                      f"removed:  none of the {n_bodies} bodies left the run")
@@ -119,6 +143,27 @@ def _event_lines(path: str, n_bodies: int) -> list[str]:
         lines += [f"  {b.name:<{width}}  {f'merged into {b.into}' if b.into else 'removed'} at t = "
                   f"{format_time(b.time)} (step {b.step})" for b in left]
     return lines
+
+
+def _list_events(path: str, kind: str | None) -> None:
+    """``info --events [KIND]``: the count line, then every event (of ``kind``), one per line, in the
+    order they happened; read block by block, so a table of millions of rows prints in flat memory."""
+    import h5py
+
+    from orbitsim.analysis.trace_events import event_counts, format_time, iter_events
+    from orbitsim.io.trace import open_trace_summary
+
+    open_trace_summary(path)  # a missing, foreign or damaged file: the one line every command gives
+    with h5py.File(path, "r") as f:
+        counts = event_counts(f)
+        if counts is None:
+            raise OneLineUsageError(f"{path}: has no events table: the run had no events: section")
+        total = sum(counts.values())
+        head = f"events:   {total} (" + ", ".join(f"{k} {n}" for k, n in counts.items()) + ")"
+        click.echo(head if kind is None else f"{head}; {counts.get(kind, 0)} of kind {kind}:")
+        width = max((len(k) for k, n in counts.items() if n and kind in (None, k)), default=0)  # as info aligns
+        for event in iter_events(f, kind):
+            click.echo(f"  t = {format_time(event.time):<14} {event.kind:<{width}}  {event.details}")
 
 
 def _checkpoint_info(path: str, show_scenario: bool) -> None:
