@@ -295,9 +295,9 @@ def _from_trace(output: Path, trace: TraceState, scenario: Scenario | None, inte
     return Continuation(output, stored, start)
 
 
-def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_end: float | None = None,
+def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_end: float | str | None = None,
                       output: str | os.PathLike | None = None, integrator: str | None = None,
-                      scenario: Scenario | None = None, force: bool = False, dt: float | None = None,
+                      scenario: Scenario | None = None, force: bool = False, dt: float | str | None = None,
                       backward: bool = False) -> Continuation:
     """How to extend the complete run in ``source`` by ``steps`` more steps, or to ``t_end``.
 
@@ -307,6 +307,7 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
     then replaced, atomically, once the extension has finished; another existing file needs
     ``force``. Another ``integrator`` or ``dt`` (``backward``: dt = -|dt|) continues the final state
     with that scheme and step, and the trace records the change (:mod:`orbitsim.checkpoint.switch`).
+    ``t_end`` and ``dt`` may be times with a unit (``"100 yr"``), converted into the stored scenario's units.
 
     Raises
     ------
@@ -326,7 +327,23 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
         return _plan_extension(src, dst, steps, t_end, (integrator, dt, backward), scenario, force)
 
 
-def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None, change: tuple[Any, ...],
+def _option_times(stored: Scenario, t_end: float | str | None,
+                  change: tuple[Any, ...]) -> tuple[float | None, tuple[Any, ...]]:
+    """``--t-end`` and ``--dt`` given with a unit (``"100 yr"``) in the stored scenario's units."""
+    from orbitsim.scenario import ScenarioError
+    from orbitsim.scenario.quantities import scenario_time
+
+    integrator, dt, backward = change
+    converted = []
+    for option, value in (("--t-end", t_end), ("--dt", dt)):
+        try:
+            converted.append(scenario_time(value, stored.units, stored.G, option) if isinstance(value, str) else value)
+        except ScenarioError as err:
+            raise CheckpointError(f"{option} {value}: {err.reason}") from None
+    return converted[0], (integrator, converted[1], backward)
+
+
+def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | str | None, change: tuple[Any, ...],
                     scenario: Scenario | None, force: bool) -> Continuation:
     from orbitsim.checkpoint.switch import plan_switch, resolve_request
 
@@ -342,6 +359,7 @@ def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None
     stored = stored_scenario(str(trace.attrs["scenario"]), trace.checkpoint.scenario_sha256, src,
                              str(trace.attrs.get("scenario_source", "")))
     _check_same(stored, src, scenario, None, ignore=("steps",))
+    t_end, change = _option_times(stored, t_end, change)
     if trace.checkpoint.steps_done != stored.steps:
         raise CheckpointError(f"{src}: damaged trace (final state at step {trace.checkpoint.steps_done}, the run "
                               f"asked for {stored.steps})")

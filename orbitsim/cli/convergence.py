@@ -8,7 +8,7 @@ import click
 
 from orbitsim.cli.compare import command_line, prepare_outdir, split_list
 from orbitsim.cli.errors import EXIT_FAILURE, fail, reports_errors
-from orbitsim.cli.options import FINITE_POSITIVE, quiet_option, scenario_argument
+from orbitsim.cli.options import FINITE_POSITIVE, POSITIVE_TIME, quiet_option, scenario_argument
 
 OUTPUT_FILES = ("summary.json", "report.md", "report.html", "convergence.png", "work_precision.png")
 
@@ -38,10 +38,11 @@ def parse_dts(text: str | None) -> list[float] | None:
 @click.option("--dts", default=None, metavar="DT1,DT2,...",
               help="The dt ladder (default: the scenario's dt times 4, 2, 1, 1/2, 1/4, 1/8). "
                    "Example: --dts 0.004,0.002,0.001,0.0005")
-@click.option("--t-end", type=FINITE_POSITIVE, default=None,
+@click.option("--t-end", type=POSITIVE_TIME, default=None,
               help="End time at which errors are measured, on the scenario's clock like its t_end "
-                   "(default: the scenario's end time). Prefer one that is not a whole number of periods "
-                   "after t_start. Example: --t-end 4.4")
+                   "(default: the scenario's end time), a number or a time with a unit as in the file "
+                   "(\"100 yr\"). Prefer one that is not a whole number of periods after t_start. "
+                   "Example: --t-end 4.4")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="End time as a number of steps of the scenario's dt. Example: --steps 5000")
 @click.option("--check", is_flag=True,
@@ -54,7 +55,7 @@ def parse_dts(text: str | None) -> list[float] | None:
 @click.pass_context
 @reports_errors
 def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | None,
-            rebound_schemes: str | None, dts: str | None, t_end: float | None, steps: int | None,
+            rebound_schemes: str | None, dts: str | None, t_end: float | str | None, steps: int | None,
             check: bool, order_tolerance: float, force: bool, quiet: bool) -> None:
     """Error at the end time against a REBOUND IAS15 reference for a ladder of dt values.
 
@@ -80,6 +81,14 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
     if steps is not None and t_end is not None:
         fail("give only one of --steps and --t-end")
     sc = load_scenario(scenario)
+    if isinstance(t_end, str):  # a time with a unit, in the scenario's units
+        from orbitsim.scenario import ScenarioError
+        from orbitsim.scenario.quantities import scenario_time
+
+        try:
+            t_end = scenario_time(t_end, sc.units, sc.G, "--t-end")
+        except ScenarioError as err:
+            fail(f"--t-end {t_end}: {err.reason}")
     # Rungs run forwards from t_start over the span T (a backwards scenario's ladder uses |dt|).
     end_time = t_end - sc.t_start if t_end is not None else (steps or sc.steps) * abs(sc.dt)
     if not end_time > 0:

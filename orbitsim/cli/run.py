@@ -13,6 +13,7 @@ import click
 from orbitsim.cli.errors import fail, reports_errors, warn
 from orbitsim.cli.options import (
     FINITE_POSITIVE,
+    POSITIVE_TIME,
     check_trace_output,
     force_option,
     output_option,
@@ -41,24 +42,25 @@ _FIXED_BY_FROM = ("every", "interval", "positions")
 @click.option("--integrator", metavar="NAME", default=None,
               help="Override the integrator (a name or alias from `orbitsim list integrators`). "
                    "Example: --integrator leapfrog4")
-@click.option("--dt", type=FINITE_POSITIVE, default=None,
-              help="Override the timestep (> 0; --backward makes it negative). With a file that gives t_end the "
-                   "step count is re-derived; with steps it is kept. With --from, the run continues with this step "
-                   "from its final state. Example: --dt 0.001")
+@click.option("--dt", type=POSITIVE_TIME, default=None,
+              help="Override the timestep (> 0; --backward makes it negative), in the scenario's time unit or with a "
+                   "unit as in the file (\"1 day\"). With a file that gives t_end the step count is re-derived; with "
+                   "steps it is kept. With --from, the run continues with this step from its final state. "
+                   "Example: --dt 0.001")
 @click.option("--backward", is_flag=True, default=False,
               help="Run time backwards: dt becomes -|dt| and t_end -|t_end| (schemes that can step backwards: "
                    "`orbitsim list integrators`). With --from, the run continues backwards from its final state. "
                    "Example: --from out.h5 --backward --steps 1000")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="Override the number of whole steps (replaces t_end). Example: --steps 20000")
-@click.option("--t-end", "t_end", type=FINITE_POSITIVE, default=None,
-              help="Override the end time: the whole steps of dt that fit (replaces steps). "
-                   "Example: --t-end 100")
+@click.option("--t-end", "t_end", type=POSITIVE_TIME, default=None,
+              help="Override the end time: the whole steps of dt that fit (replaces steps); a number or a time "
+                   "with a unit, as in the file. Example: --t-end 100 or --t-end \"1000 yr\"")
 @click.option("--every", type=click.IntRange(min=1), default=None,
               help="Sample every K steps (replaces output.interval). Example: --every 100")
-@click.option("--interval", type=FINITE_POSITIVE, default=None,
-              help="Sample every T time units, on the last whole step not past each sample time "
-                   "(replaces output.every). Example: --interval 0.5")
+@click.option("--interval", type=POSITIVE_TIME, default=None,
+              help="Sample every T time units (or a time with a unit, \"10 yr\"), on the last whole step not past "
+                   "each sample time (replaces output.every). Example: --interval 0.5")
 @click.option("--positions/--no-positions", default=None,
               help="Record (or not) positions and velocities at every sample. Example: --no-positions")
 @click.option("--checkpoint-every", "checkpoint_every", type=click.IntRange(min=1), default=None,
@@ -76,8 +78,8 @@ _FIXED_BY_FROM = ("every", "interval", "positions")
 @force_option()
 @quiet_option()
 @reports_errors
-def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | None, backward: bool,
-            steps: int | None, t_end: float | None, every: int | None, interval: float | None,
+def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | str | None, backward: bool,
+            steps: int | None, t_end: float | str | None, every: int | None, interval: float | str | None,
             positions: bool | None, checkpoint_every: int | None, checkpoint_seconds: float | None,
             from_trace: str | None, threads: int | None, force: bool, quiet: bool) -> None:
     """Run SCENARIO (a YAML file or a bundled name) and write its HDF5 trace.
@@ -130,7 +132,7 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
     execute(chosen, output, force=force, threads=threads, quiet=quiet)
 
 
-def _rebound_or_yaml(scenario: str, steps: int | None, t_end: float | None) -> Any:
+def _rebound_or_yaml(scenario: str, steps: int | None, t_end: float | str | None) -> Any:
     """``run sim.bin``: a REBOUND file (known by its first bytes) is a scenario of its own, run for
     --steps or --t-end with its integrator and dt; anything else is a YAML file or a bundled name."""
     from orbitsim.io.rebound_file import is_rebound_file
@@ -160,7 +162,7 @@ def execute(scenario: Any, output: Any, *, force: bool, threads: int | None, qui
 
 
 def _extend(source: str, scenario: str | None, output: str | None, change: dict[str, Any], steps: int | None,
-            t_end: float | None, checkpoints: dict[str, Any], threads: int | None, force: bool, quiet: bool,
+            t_end: float | str | None, checkpoints: dict[str, Any], threads: int | None, force: bool, quiet: bool,
             fixed: dict[str, Any]) -> None:
     """``run --from``: the stored scenario, longer, continued from the trace's final state (with the
     integrator, dt or direction ``change`` asks for: :mod:`orbitsim.checkpoint.switch`)."""

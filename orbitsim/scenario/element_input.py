@@ -6,7 +6,8 @@ One of each group must be given (or takes its default):
   or ``q`` (pericentre distance, a = q / (1 - e); the only choice for a parabola, e = 1);
 - orientation of the pericentre: ``omega`` (argument) or ``pomega`` (longitude, pomega = Omega + omega);
 - position on the orbit: ``M`` or ``f`` (mean or true anomaly) or ``l`` or ``theta`` (mean or true
-  longitude, l = pomega + M, theta = pomega + f).
+  longitude, l = pomega + M, theta = pomega + f); none of them means f = 0, at pericentre, REBOUND's
+  rule (``rebound.Particle``, f = 0 when no anomaly or longitude is passed), and ``orbitsim validate`` says so.
 
 Angles are in the scenario's ``angles`` unit (degrees unless ``angles: rad``), or strings
 ``"90 deg"``/``"1.57 rad"``; every error about an element names that unit, since a radian value
@@ -75,8 +76,12 @@ def _elements_state(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[
         angles["omega"] = reader.angle(body.raw("pomega"), body.key("pomega")) - angles["Omega"]
     else:
         angles["omega"] = reader.angle(body.raw("omega"), body.key("omega")) if body.has("omega") else 0.0
-    anomaly_key = body.one_of("M", "f", "l", "theta")
-    anomaly = reader.angle(body.raw(anomaly_key), body.key(anomaly_key))
+    anomaly_key = body.one_of("M", "f", "l", "theta", required=False)
+    if anomaly_key is None:  # REBOUND's rule: no anomaly or longitude means f = 0, at pericentre
+        bodies.no_anomaly.append(f"{body.path} ({body.data.get('name')})")
+        anomaly_key, anomaly = "f", 0.0
+    else:
+        anomaly = reader.angle(body.raw(anomaly_key), body.key(anomaly_key))
     if anomaly_key in ("l", "theta"):  # a longitude: measured from the node's reference direction
         anomaly -= angles["Omega"] + angles["omega"]
     kind = {"l": "M", "theta": "f"}.get(anomaly_key, anomaly_key)

@@ -197,14 +197,21 @@ class Scenario:
             self._set(attr, value)
 
     def _validate_integrator(self) -> None:
+        from orbitsim.integrators.rebound_names import leapfrog_order
         from orbitsim.integrators.registry import UnknownIntegratorError, get_module
 
+        settings = self.integrator_settings or {}
+        name = self.integrator
+        if isinstance(settings, Mapping):  # REBOUND's leapfrog with `order: 4` is leapfrog4
+            try:
+                name, settings = leapfrog_order(name, dict(settings))
+            except ValueError as err:
+                raise ScenarioError(str(err), key="integrator.order") from None
         try:
-            module = get_module(self.integrator)
+            module = get_module(name)
         except UnknownIntegratorError as err:
             raise ScenarioError(str(err), key="integrator") from None
         self._set("integrator", module.SPEC.name)
-        settings = self.integrator_settings or {}
         if not isinstance(settings, Mapping):
             raise ScenarioError(f"integrator settings must be a mapping, got {describe(settings)}",
                                 key="integrator")
