@@ -220,13 +220,14 @@ def extend_series(series: ConvergenceSeries, rungs: _Rungs, say: Callable[[str],
         if not fresh:
             break
         dt = min(fresh, key=lambda x: float(np.min(np.abs(done - math.log(x)))))
+        finer = dt < min(p.dt for p in series.points)
         went_coarser = went_coarser or dt > max(p.dt for p in series.points)
         point = rungs.point(series, dt, added=True)
         series.points.append(point)
         say(f"  {series.key}: added dt = {dt:.6g} ({point.steps} steps), error {point.error:.1e}")
-        if fit.kind == FITTED:
+        if fit.kind == FITTED and finer:
             refit = series.fit(rungs.end_time)
-            if refit is not None and not refit.used[[p.dt for p in series.points].index(dt)]:
+            if refit is not None and refit.kind == FITTED and not refit.used[[p.dt for p in series.points].index(dt)]:
                 break  # the finer rung fell off the asymptotic slope (round-off): finer cannot help
     series.fit(rungs.end_time)
 

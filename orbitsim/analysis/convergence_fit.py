@@ -12,9 +12,10 @@ neighbouring rungs, log(e_k / e_k+1) / log(dt_k / dt_k+1), is constant only in b
    :data:`STAGNATION_SLOPE`) at a level round-off can explain (below :func:`round_off_bound` of
    the finer rung's step count). Then the rungs past that first stall are round-off, and so is
    a rung within :data:`FLOOR_MARGIN` of the smallest error unless it was reached by a fall from
-   a rung above that margin (round-off scatters over a decade or two; a truncation error falls
-   into it along the scheme's slope). A stall at larger errors is not round-off: the ladder has
-   not reached the asymptotic range there (e.g. an error oscillating with the orbit's phase).
+   a rung above that margin and lies more than :data:`FLOOR_SCATTER` above the floor (round-off
+   scatters over a decade or two; a truncation error falls into it along the scheme's slope).
+   A stall at larger errors is not round-off: the ladder has not reached the asymptotic range
+   there (e.g. an error oscillating with the orbit's phase).
 3. The asymptotic range is the run of consecutive remaining rungs that ends at the finest rung
    possible and reaches from there as far coarser as its local slopes lie within
    :func:`slope_spread` of each other; the order is the least-squares slope over its
@@ -31,8 +32,11 @@ import numpy as np
 
 #: A local slope below this means halving dt no longer helps (round-off, or not yet asymptotic).
 STAGNATION_SLOPE = 0.5
-#: Points with an error within this factor of the floor are round-off dominated.
+#: Points with an error within this factor of the floor are round-off dominated ...
 FLOOR_MARGIN = 100.0
+#: ... unless a truncation error fell into that margin from above it, and still lies this far
+#: above the floor: round-off scatters by about a decade about its floor.
+FLOOR_SCATTER = 10.0
 #: Relative errors above this are not in the asymptotic regime (the orbit is already wrong).
 CEILING = 0.1
 #: Errors below ten roundings of a unit position (2.2e-15) measure rounding, not truncation.
@@ -175,7 +179,7 @@ def fit_order(dts: np.ndarray, errors: np.ndarray, steps: np.ndarray | None = No
     clear = e > FLOOR_MARGIN * floor
     # Near the floor only a rung reached by a fall from a clear one is truncation (step 2 above).
     fell_into = np.zeros(e.size, dtype=bool)
-    fell_into[1:] = clear[:-1] & (slopes >= STAGNATION_SLOPE)
+    fell_into[1:] = clear[:-1] & (slopes >= STAGNATION_SLOPE) & (e[1:] > FLOOR_SCATTER * floor)
     above_floor = (clear | fell_into) & (e > ULP_FLOOR)
     if stalled.size:  # past the first stall round-off rules: it only grows with the step count
         above_floor[stalled[0] + 1:] = False
@@ -206,14 +210,18 @@ def fit_order(dts: np.ndarray, errors: np.ndarray, steps: np.ndarray | None = No
     elif finer_out:
         notes.append(f"{finer_out} finer rung(s) off the asymptotic slope left out")
     if drifting and not finer_clear.size and floor:
-        notes.append(f"local slopes {', '.join(f'{s:.2f}' for s in local)} still drift, and the round-off floor "
-                     "leaves no finer rung to settle them")
+        # Finer rungs are round-off: the range can only grow coarser, or denser within.
+        top = int(np.flatnonzero(finite)[0])
+        suggested = (_coarser(float(d[first]), max_dt) if first == top and e[first] <= CEILING
+                     else _denser(float(d[first]), float(d[stop - 1])))
+        notes.append(f"local slopes {', '.join(f'{s:.2f}' for s in local)} still drift near the round-off floor: "
+                     f"try --dts {_ladder_text(list(suggested))}")
     elif drifting and not finer_clear.size:
         suggested = _finer(float(d[picked[-1]]))
         notes.append(f"local slopes {', '.join(f'{s:.2f}' for s in local)} still drift, so finer dt may move the "
                      f"fit: try --dts {_ladder_text(list(suggested))}")
     settled = not (drifting or finer_clear.size)
-    extend = bool(finer_clear.size) or (drifting and not floor)
+    extend = bool(finer_clear.size) or drifting
     return OrderFit(slope, used, "; ".join(notes), FITTED, settled, floor, suggested, extend)
 
 
