@@ -2,10 +2,12 @@
 
 Both always run, from the scenario's state with the same settings (``epsilon`` and ``min_dt``
 from the scenario when its integrator is ias15, else REBOUND's defaults; the first trial step is
-the scenario's ``dt``), and land exactly on the same output times. One of them is the reference
-every run is measured against (``--reference``); the other is reported beside it, with their
-mutual position difference. When ias15 is among the compared integrators the two also form the
-matched pair :data:`~orbitsim.reference.pairs.IAS15_PAIR`.
+the scenario's ``dt``) and the same forces (REBOUND's through REBOUNDx, in its equations of motion),
+and land exactly on the same output times. Where REBOUNDx cannot express the scenario's forces
+(:func:`orbitsim.reference.force_pairing.rebound_refusal`) REBOUND's IAS15 is not run at all.
+One of them is the reference every run is measured against (``--reference``); the other is
+reported beside it, with their mutual position difference. When ias15 is among the compared
+integrators the two also form the matched pair :data:`~orbitsim.reference.pairs.IAS15_PAIR`.
 
 Output times:
 
@@ -32,7 +34,7 @@ from orbitsim.analysis.record import RunRecord, record_from_result
 from orbitsim.reference.adaptive import IAS15_DEFAULTS
 
 __all__ = ["REFERENCE_CHOICES", "escape_summary", "fixed_step_plan", "ias15_settings", "mutual_difference",
-           "output_grid", "run_ias15_references"]
+           "output_grid", "rebound_ias15_refusal", "run_ias15_references"]
 
 #: ``--reference``: which IAS15 serves as the reference (the first is the default).
 REFERENCE_CHOICES = ("rebound", "orbitsim")
@@ -98,6 +100,7 @@ def fixed_step_plan(scenario: Any, times: np.ndarray) -> np.ndarray:
 
 def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) -> RunRecord:
     """orbitsim's ias15 on the comparison's grid, timed after a warm-up that loads its kernels."""
+    from orbitsim.reference.force_pairing import orbitsim_force_lines
     from orbitsim.results import collect_result
     from orbitsim.scenario_simulation import scenario_forces
     from orbitsim.simulation import Simulation
@@ -122,6 +125,7 @@ def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) 
     record = record_from_result(result, key="orbitsim_ias15", order=None,
                                 display=f"orbitsim ias15 (epsilon {settings['epsilon']:g})",
                                 options={**run_settings, "exact_finish_time": 1})
+    record.forces = orbitsim_force_lines(scenario_forces(scenario), "ias15")
     record.step = plan[: record.n_samples].copy()  # the comparison's sample steps, as the other runs'
     record.engine = "reference"
     record.steps_done = int(counters["steps_accepted"])
@@ -130,28 +134,44 @@ def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) 
     return record
 
 
+def rebound_ias15_refusal(scenario: Any) -> str | None:
+    """Why REBOUND's IAS15 cannot carry the scenario's forces (then it is not run), or None."""
+    from orbitsim.reference.bridge import ReboundScheme
+    from orbitsim.reference.force_pairing import rebound_refusal
+    from orbitsim.scenario_simulation import scenario_forces
+
+    return rebound_refusal(scenario_forces(scenario), ReboundScheme("ias15"))
+
+
 def run_ias15_references(scenario: Any, threads: int | None = None) -> dict[str, RunRecord]:
-    """Both IAS15s on the comparison's output times: ``{"rebound": ..., "orbitsim": ...}``."""
+    """Both IAS15s on the comparison's output times: ``{"rebound": ..., "orbitsim": ...}``, without
+    ``"rebound"`` when REBOUND cannot carry the scenario's forces (:func:`rebound_ias15_refusal`)."""
     from orbitsim.reference.adaptive import run_rebound_ias15
+    from orbitsim.scenario_simulation import scenario_forces
 
     settings = ias15_settings(scenario)
+    native = _run_native(scenario, settings, threads)
+    if rebound_ias15_refusal(scenario):
+        return {"orbitsim": native}
     _, _, _, plan, times = output_grid(scenario)
     rebound = run_rebound_ias15(scenario.masses, scenario.positions, scenario.velocities, G=scenario.G,
                                 softening=scenario.softening, first_dt=float(scenario.dt), times=times, labels=plan,
-                                settings=settings, display=f"REBOUND IAS15 (epsilon {settings['epsilon']:g})")
-    return {"rebound": rebound, "orbitsim": _run_native(scenario, settings, threads)}
+                                settings=settings, display=f"REBOUND IAS15 (epsilon {settings['epsilon']:g})",
+                                forces=scenario_forces(scenario))
+    return {"rebound": rebound, "orbitsim": native}
 
 
 def rebound_ias15_twin(scenario: Any, perturbation: float) -> RunRecord:
     """REBOUND's IAS15 again, from positions scaled by ``1 + perturbation`` (the ias15 pair's twin)."""
     from orbitsim.reference.adaptive import run_rebound_ias15
+    from orbitsim.scenario_simulation import scenario_forces
 
     _, _, _, plan, times = output_grid(scenario)
     positions = np.asarray(scenario.positions, dtype=np.float64) * (1.0 + perturbation)
     return run_rebound_ias15(scenario.masses, positions, scenario.velocities, G=scenario.G,
                              softening=scenario.softening, first_dt=float(scenario.dt), times=times, labels=plan,
                              settings=ias15_settings(scenario), engine="rebound_twin", key="ias15",
-                             display="REBOUND IAS15 twin")
+                             display="REBOUND IAS15 twin", forces=scenario_forces(scenario))
 
 
 def mutual_difference(a: RunRecord, b: RunRecord) -> tuple[float, float]:

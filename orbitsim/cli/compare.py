@@ -144,15 +144,25 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
       orbitsim compare figure_eight -o fig8/ --rebound leapfrog:4,leapfrog:6,saba:10_6_4
       orbitsim compare pythagorean -o pyth/ --reference orbitsim
     """
-    from orbitsim.analysis.compare import default_integrators, default_rebound, run_compare
+    from orbitsim.analysis.compare import (
+        default_candidates,
+        default_integrators,
+        default_rebound,
+        defaults_left_out,
+        run_compare,
+    )
     from orbitsim.analysis.compare_ias15 import fixed_step_plan, output_grid
     from orbitsim.analysis.compare_output import write_compare_outputs
     from orbitsim.reference.bridge import parse_rebound_scheme
     from orbitsim.reference.pairs import parse_pair
 
     sc = load_with_overrides(scenario, dt, steps, t_end)
+    notes = []
     try:
         names = split_list(integrators) or default_integrators(sc)
+        if not integrators:
+            notes = [f"{name} is not among the default integrators: {why}"
+                     for name, why in defaults_left_out(sc, default_candidates(sc))]
         schemes = ([parse_rebound_scheme(s) for s in split_list(rebound_schemes)] if rebound_schemes
                    else default_rebound(names, sc.masses, whfast=not sc.adaptive))
         extra = [parse_pair(p) for p in pairs]
@@ -172,7 +182,7 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
         warn(f"{sc.n_bodies} bodies: each IAS15 reference (orbitsim's and REBOUND's) costs several O(N^2) force "
              "evaluations per adaptive step and will dominate the run time (plummer_1k: ~0.2 s per IAS15 step)")
     result = run_compare(sc, integrators=names, rebound=schemes, extra_pairs=extra, threads=threads, progress=say,
-                         reference=reference)
+                         reference=reference, notes=notes)
     paths = write_compare_outputs(result, outdir, command_line(ctx))
     if result.reference_problem:
         say(f"  WARNING  reference unreliable: {result.reference_problem}")
