@@ -218,3 +218,23 @@ def test_validate_says_which_bodies_start_at_f_zero(tmp_path: Path) -> None:
     path.write_text(yaml.safe_dump(_doc(HALLEY)))  # every body gives its anomaly: no such line
     result = CliRunner().invoke(cli, ["validate", str(path)])
     assert result.exit_code == 0 and "no anomaly" not in result.output, result.output
+
+
+@pytest.mark.parametrize("inc", [30.0, 120.0, 162.26, 180.0])
+@pytest.mark.parametrize("longitudes", [{"pomega": 100.0, "l": 250.0}, {"pomega": 100.0, "theta": 250.0},
+                                        {"omega": 60.0, "l": 250.0}, {"pomega": -20.0, "M": 30.0}])
+def test_longitudes_follow_rebound_on_retrograde_orbits(inc: float, longitudes: dict) -> None:
+    """pomega, l and theta are measured along the motion: on a retrograde orbit (cos i < 0) REBOUND's
+    ``sim.add`` takes pomega = Omega - omega, l = Omega - omega - M, theta = Omega - omega - f."""
+    rebound = pytest.importorskip("rebound")
+    sim = rebound.Simulation()
+    sim.G = G
+    sim.add(m=1.0)
+    sim.add(m=1e-3, primary=sim.particles[0], a=1.3, e=0.4, inc=math.radians(inc), Omega=math.radians(40),
+            **{k: math.radians(v) for k, v in longitudes.items()})
+    x, v = _state({"a": 1.3, "e": 0.4, "inc": inc, "Omega": 40, **longitudes})
+    p = sim.particles[1]
+    # Two implementations of the same conversion (and degrees -> radians here): a few ulps of |x|, |v|,
+    # where a wrong sense of the longitudes moves the body by order 1.
+    np.testing.assert_allclose(x, [p.x, p.y, p.z], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(v, [p.vx, p.vy, p.vz], rtol=0, atol=1e-12)
