@@ -388,6 +388,10 @@ class Scenario:
         new = dataclasses.replace(self, **fields)
         if not {"names", "masses", "positions", "velocities"} & fields.keys():
             new.remember_origins(self.origins)
+        if fields.keys() <= {"source"}:  # not part of the text: its hash and stored form stay (seconds at 10^6 bodies)
+            for kept in ("_yaml", "_sha256", "_stored"):
+                if kept in self.__dict__:
+                    new._set(kept, self.__dict__[kept])
         return new
 
     def remember_origins(self, origins: Any) -> None:
