@@ -9,7 +9,8 @@ Every jitted function in orbitsim is decorated with :func:`jit` (exact IEEE arit
   (:data:`CACHE_DIR`). Numba's cache index only watches the file that holds the cached function, so
   a caller in one module keeps running a stale copy of a callee edited in another module. Keying
   the directory by the hash of every source file means an edited tree never loads stale machine
-  code. ``orbitsim cache clear`` removes old directories.
+  code. ``orbitsim cache clear`` removes old directories. A ``NUMBA_CACHE_DIR`` the user set is
+  where the generations go (:func:`cache_root`), never a flat cache of its own.
 * ``fastmath``: off everywhere except :func:`jit_force`, which allows only ``reassoc`` and
   ``contract`` (no ``nsz``/``arcp``/``afn``) so LLVM can vectorise the inner j-sum of the force
   loop (4.5x measured) and fuse its multiply-adds. Its cost was a relative change of ~4e-15 in
@@ -58,19 +59,33 @@ def _source_hash() -> str:
     return digest.hexdigest()[:16]
 
 
-def cache_root() -> Path:
-    """Directory that holds every orbitsim cache generation (``$ORBITSIM_CACHE_DIR`` overrides)."""
+def cache_root() -> tuple[Path, str]:
+    """Directory that holds every orbitsim cache generation, and what chose it.
+
+    ``$ORBITSIM_CACHE_DIR``; else ``$NUMBA_CACHE_DIR/orbitsim``: Numba's own setting is honoured as
+    the place, with orbitsim's generations inside it (a flat Numba cache would keep running a
+    callee's old machine code after an upgrade, see the module docstring); else
+    ``$XDG_CACHE_HOME/orbitsim/numba`` (``~/.cache`` without XDG_CACHE_HOME).
+    """
     env = os.environ.get("ORBITSIM_CACHE_DIR")
     if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(xdg) / "orbitsim" / "numba"
+        return Path(env), "ORBITSIM_CACHE_DIR"
+    numba_dir = os.environ.get("NUMBA_CACHE_DIR")
+    if numba_dir:
+        return Path(numba_dir) / "orbitsim", "NUMBA_CACHE_DIR"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return Path(xdg or str(Path.home() / ".cache")) / "orbitsim" / "numba", "XDG_CACHE_HOME" if xdg else "default"
 
 
-CACHE_DIR = cache_root() / f"{__version__}-{_source_hash()}"
+#: Where the cache generations are, and the variable that said so (``cache_root``).
+CACHE_ROOT, CACHE_ROOT_FROM = cache_root()
+CACHE_DIR = CACHE_ROOT / f"{__version__}-{_source_hash()}"
 
-# Must be set before numba reads its configuration, and before any function is decorated.
-os.environ.setdefault("NUMBA_CACHE_DIR", str(CACHE_DIR))
+# Must be set before numba reads its configuration, and before any function is decorated. The root
+# is exported too, so that a child process (a Dask worker) finds the same generation rather than
+# reading this NUMBA_CACHE_DIR as a user's and nesting another one inside it.
+os.environ["ORBITSIM_CACHE_DIR"] = str(CACHE_ROOT)
+os.environ["NUMBA_CACHE_DIR"] = str(CACHE_DIR)
 
 import numba  # noqa: E402
 

@@ -189,10 +189,21 @@ def _two_body_energy(r: np.ndarray, v: np.ndarray, mu: float) -> float:
     return 0.5 * float(v @ v) - mu / float(np.linalg.norm(r))
 
 
+#: Bodies named in "has ... bound to it" before the rest are counted.
+_BOUND_NAMES_SHOWN = 3
+
+
 def escape_summary(record: RunRecord, masses: np.ndarray, G: float, names: list[str]) -> str:
-    """The final state in a phrase per body: bound to another body (negative two-body energy with
-    it; the most bound partner is named), escaping (bound to none, positive energy against the
-    barycentre of all the others, and receding from it), or unbound."""
+    """The final state in a phrase per body, the lighter of a bound pair bound to the heavier.
+
+    * ``b: bound to star``: the body's most bound partner (the lowest negative two-body energy)
+      among the bodies at least as heavy (of equal masses, the earlier one);
+    * ``star: has b, c bound to it``: a body no heavier one holds, which holds lighter ones;
+    * ``escaping``, ``unbound`` or ``bound`` (with its distance): a body in no bound pair, by its
+      energy against the barycentre of all the others (escaping: positive and receding).
+
+    A star used to read ``star: bound to b``, its innermost planet being its most bound partner.
+    """
     if record.n_samples == 0:
         return "no samples"
     m = np.asarray(masses, dtype=np.float64)
@@ -201,13 +212,26 @@ def escape_summary(record: RunRecord, masses: np.ndarray, G: float, names: list[
     def name(i: int) -> str:
         return names[i] if i < len(names) else f"body {i}"
 
+    def heavier(i: int, j: int) -> bool:
+        return m[j] > m[i] or (m[j] == m[i] and j < i)
+
+    holder: dict[int, int] = {}
+    for i in range(m.size):
+        energy = {j: _two_body_energy(pos[i] - pos[j], vel[i] - vel[j], G * (m[i] + m[j]))
+                  for j in range(m.size) if j != i and heavier(i, j) and np.any(pos[i] != pos[j])}
+        j = min(energy, key=energy.__getitem__, default=None)
+        if j is not None and energy[j] < 0.0:
+            holder[i] = j
     parts = []
     for i in range(m.size):
-        pair_energy = [_two_body_energy(pos[i] - pos[j], vel[i] - vel[j], G * (m[i] + m[j]))
-                       if j != i and np.any(pos[i] != pos[j]) else math.inf for j in range(m.size)]
-        j = int(np.argmin(pair_energy)) if m.size > 1 else i
-        if m.size > 1 and pair_energy[j] < 0.0:
-            parts.append(f"{name(i)}: bound to {name(j)}")
+        if i in holder:
+            parts.append(f"{name(i)}: bound to {name(holder[i])}")
+            continue
+        held = [name(k) for k in range(m.size) if holder.get(k) == i]
+        if held:
+            shown = ", ".join(held[:_BOUND_NAMES_SHOWN])
+            more = f" and {len(held) - _BOUND_NAMES_SHOWN} more" if len(held) > _BOUND_NAMES_SHOWN else ""
+            parts.append(f"{name(i)}: has {shown}{more} bound to it")
             continue
         others = np.arange(m.size) != i
         rest = float(m[others].sum())
@@ -216,7 +240,7 @@ def escape_summary(record: RunRecord, masses: np.ndarray, G: float, names: list[
         r = pos[i] - (m[others] @ pos[others]) / rest
         v = vel[i] - (m[others] @ vel[others]) / rest
         dist = float(np.linalg.norm(r))
-        energy = 0.5 * float(v @ v) - G * (rest + m[i]) / dist if dist > 0 else -math.inf
-        state = "escaping" if energy > 0.0 and float(r @ v) > 0.0 else ("unbound" if energy > 0.0 else "bound")
+        energy_i = 0.5 * float(v @ v) - G * (rest + m[i]) / dist if dist > 0 else -math.inf
+        state = "escaping" if energy_i > 0.0 and float(r @ v) > 0.0 else ("unbound" if energy_i > 0.0 else "bound")
         parts.append(f"{name(i)}: {state} (r = {dist:.4g} from the others' barycentre)")
     return "; ".join(parts)

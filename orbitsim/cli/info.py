@@ -83,7 +83,7 @@ def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
     summary = open_trace_summary(trace)
     attrs = summary["attrs"]
     if show_scenario:
-        click.echo(attrs.get("scenario", ""), nl=False)
+        click.echo(_whole_text(trace, attrs), nl=False)
         return
     sections = _event_lines(trace, summary["n_bodies"])  # read first: a damaged table is one line, nothing before
     click.echo(f"trace:    {summary['path']}")
@@ -106,7 +106,10 @@ def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
     rest = sorted(k for k in attrs if k not in _HEADER and k != "integrator_history")
     width = max((len(k) for k in rest), default=0)
     for key in rest:
-        value = f"<{len(attrs[key])} characters of YAML; see --scenario>" if key == "scenario" else _show(attrs[key])
+        value = _show(attrs[key])
+        if key == "scenario":
+            beside = ", the bodies in scenario_bodies/" if "scenario_bodies/names" in summary["shapes"] else ""
+            value = f"<{len(attrs[key])} characters of YAML{beside}; see --scenario>"
         click.echo(f"  {key:<{width}}  {value}")
     for line in trace_checkpoint_lines(trace, attrs):
         click.echo(line)
@@ -173,10 +176,38 @@ def _checkpoint_info(path: str, show_scenario: bool) -> None:
     from orbitsim.io.checkpoint import checkpoint_path, read_checkpoint
 
     if show_scenario:
-        click.echo(read_checkpoint(checkpoint_path(resolve_output(path))).scenario, nl=False)
+        where = checkpoint_path(resolve_output(path))
+        ckpt = read_checkpoint(where)
+        if ckpt.scenario_bodies is None:
+            click.echo(ckpt.scenario, nl=False)
+            return
+        from orbitsim.checkpoint.plan import stored_scenario
+
+        click.echo(stored_scenario(ckpt.scenario, ckpt.scenario_sha256, where, bodies=ckpt.scenario_bodies).to_yaml(),
+                   nl=False)
         return
     for line in checkpoint_file_lines(path):
         click.echo(line)
+
+
+def _whole_text(trace: str, attrs: dict[str, Any]) -> str:
+    """The trace's resolved scenario as YAML: its ``scenario`` text, with a large scenario's bodies
+    (stored as datasets beside it, :mod:`orbitsim.io.stored_scenario`) written back in."""
+    from pathlib import Path
+
+    from orbitsim.checkpoint.plan import stored_scenario
+    from orbitsim.io.stored_scenario import read_scenario_bodies
+    from orbitsim.io.trace import TraceError, open_trace
+
+    with open_trace(trace) as f:
+        try:
+            bodies = read_scenario_bodies(f)
+        except (KeyError, OSError) as err:
+            raise TraceError(f"{trace}: damaged trace ({err})") from None
+    text = str(attrs.get("scenario", ""))
+    if bodies is None:
+        return text
+    return stored_scenario(text, str(attrs.get("scenario_sha256", "")), Path(trace), bodies=bodies).to_yaml()
 
 
 def _show(value: Any, full: bool = False) -> str:

@@ -231,15 +231,9 @@ def _apply_overrides(scenario: Any, overrides: dict[str, Any]) -> Any:
 def _report(summary: Any, scenario: Any, quiet: bool) -> None:
     """Print the summary line; exit non-zero for a diverged or interrupted run."""
     if not quiet:
-        rate = rate_text(summary.steps_per_s)
         end = f"t = {summary.end_time:.10g}" if summary.samples else "no samples"
-        done = f"{summary.steps_done} of {summary.steps_requested} steps in {summary.wall_time_s:.3g} s ({rate})"
-        own = summary.scheme_counters
-        if own is not None and scenario.adaptive:  # its steps are its own; the grid is the output intervals
-            rate = rate_text(own["steps_accepted"] / summary.wall_time_s if summary.wall_time_s > 0 else math.inf)
-            done = (f"{summary.steps_done} of {summary.steps_requested} output intervals in {summary.wall_time_s:.3g}"
-                    f" s ({scenario.integrator}: {own['steps_accepted']:,} steps, {own['steps_rejected']:,} rejected,"
-                    f" {rate})")
+        done = _work_text(summary, scenario)
+        own = summary.scheme_counters_here()
         if own is not None and "redone" in own:  # a hybrid's encounters: how often it switched and redid a step
             ias15 = f", {own['full_ias15_steps']:,} IAS15 steps" if own.get("full_ias15_steps") else ""
             done += (f" ({scenario.integrator}: {own['redone']:,} steps redone, "
@@ -264,6 +258,29 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
         hint = f"; continue with `orbitsim resume {summary.output}`" if summary.resumable else ""
         fail(f"{summary.message}; the {summary.samples} samples taken are in {summary.output}{hint}",
              summary.exit_code)
+
+
+def _work_text(summary: Any, scenario: Any) -> str:
+    """What the run did, and at what rate: ``10000 of 10000 steps in 11.9 s (850 steps/s)``.
+
+    A continued run (``resume``, ``run --from``) gives the rate of the steps this process took, in
+    its own wall time: ``10100 of 10100 steps, 100 of them (from step 10000) in 0.05 s (2,000
+    steps/s)``. The earlier parts' steps and wall time (kept in the trace) would make it meaningless.
+    """
+    unit = "output intervals" if scenario.adaptive else "steps"  # an adaptive scheme's grid is the output
+    own = summary.scheme_counters_here()
+    wall = summary.wall_here_s
+    if own is not None and scenario.adaptive:  # its steps are its own; the grid is the output intervals
+        rate = rate_text(own["steps_accepted"] / wall if wall > 0 else math.inf)
+        pace = (f"({scenario.integrator}: {own['steps_accepted']:,} steps, {own['steps_rejected']:,} rejected, "
+                f"{rate})")
+    else:
+        pace = f"({rate_text(summary.steps_per_s)})"
+    done = f"{summary.steps_done} of {summary.steps_requested} {unit}"
+    if not summary.continued:
+        return f"{done} in {wall:.3g} s {pace}"
+    where = "output interval" if scenario.adaptive else "step"
+    return f"{done}, {summary.steps_here} of them (from {where} {summary.steps_before}) in {wall:.3g} s {pace}"
 
 
 def rate_text(steps_per_s: float) -> str:

@@ -197,14 +197,21 @@ def departure_note(state: SampleState, where: str) -> str:
 
 
 def stored_scenario_of(state: SampleState, where: str) -> Any:
-    """The fully resolved scenario the trace stores (checked against its SHA-256)."""
+    """The fully resolved scenario the trace stores (checked against its SHA-256; a large one's
+    bodies are datasets beside its text, :mod:`orbitsim.io.stored_scenario`)."""
     from orbitsim.checkpoint.plan import stored_scenario
+    from orbitsim.io.stored_scenario import read_scenario_bodies
 
     text = state.attrs.get("scenario")
     if not isinstance(text, str) or not text:
         raise TraceError(f"{where}: the trace stores no scenario")
     _refuse_before_a_switch(state, where)
-    return stored_scenario(text, str(state.attrs.get("scenario_sha256", "")), Path(where))
+    with open_trace(where) as f:
+        try:
+            bodies = read_scenario_bodies(f)
+        except (KeyError, OSError) as err:
+            raise TraceError(f"{where}: damaged trace ({err})") from None
+    return stored_scenario(text, str(state.attrs.get("scenario_sha256", "")), Path(where), bodies=bodies)
 
 
 def _refuse_before_a_switch(state: SampleState, where: str) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from orbitsim.integrators.rebound_names import rebound_note
-from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_barycentre
+from orbitsim.scenario.bodies import BodySet, check_coincident, read_bodies, shift_to_barycentre
 from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.events import read_events
@@ -21,7 +21,7 @@ from orbitsim.scenario.rebound_bodies import expand_rebound_bodies, uses_rebound
 from orbitsim.scenario.timing import adaptive_integrator, check_t_start, resolve_grid, run_span, whole_count
 from orbitsim.scenario.yamlio import parse_yaml
 
-__all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
+__all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict", "scenario_from_stored"]
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "t_start", "steps", "t_end", "output", "softening",
             "frame", "bodies", "ephemeris", "generator", "events", "forces", "integrator_state",
@@ -145,6 +145,54 @@ def scenario_from_dict(doc: Mapping[str, Any], source: str = "<inline>") -> Scen
         raise err.located(source) from None
 
 
+def scenario_from_stored(text: str, arrays: Mapping[str, Any] | None, source: str = "<inline>") -> Scenario:
+    """The scenario a trace or checkpoint stores (:func:`orbitsim.scenario.serialize.stored_form`):
+    its resolved text, and for a large scenario the per-body rows as arrays beside it.
+
+    Raises
+    ------
+    ScenarioError
+        For text or arrays that do not make a valid scenario (a missing or misshapen array names
+        its dataset).
+    """
+    doc, _ = parse_yaml(text, source)
+    if arrays is None:
+        return scenario_from_dict(doc, source)
+    if not isinstance(doc, Mapping) or "bodies" in doc:
+        raise ScenarioError("the text beside the stored bodies must be a mapping without bodies", file=source)
+    doc = dict(doc)
+    try:
+        given = _stored_bodies(arrays)
+        if isinstance(doc.get("integrator_state"), Mapping):
+            doc["integrator_state"] = {**doc["integrator_state"],
+                                       **{k: arrays[k] for k in ("mapping_positions", "mapping_velocities")}}
+        return _build(doc, source, "scenario", given)
+    except KeyError as err:
+        raise ScenarioError(f"the stored bodies lack the dataset {err}", file=source) from None
+    except ScenarioError as err:
+        raise err.located(source) from None
+
+
+def _stored_bodies(arrays: Mapping[str, Any]) -> BodySet:
+    """The bodies of a stored scenario's arrays (names, m, x, v and maybe r), as the reader makes them."""
+    import numpy as np
+
+    names = [n.decode() if isinstance(n, bytes) else str(n) for n in np.asarray(arrays["names"]).tolist()]
+    n = len(names)
+    m, x, v = (np.asarray(arrays[k], dtype=np.float64) for k in ("m", "x", "v"))
+    if m.shape != (n,) or x.shape != (n, 3) or v.shape != (n, 3):
+        raise ScenarioError(f"the stored bodies' arrays do not fit {n} names (m {m.shape}, x {x.shape}, v {v.shape})")
+    bodies = BodySet()
+    keys = [f"bodies[{i}]" for i in range(n)]
+    bodies.add(names, m, x, v, keys, keys)
+    if "r" in arrays:
+        r = np.asarray(arrays["r"], dtype=np.float64)
+        if r.shape != (n,):
+            raise ScenarioError(f"the stored radii have shape {r.shape}, expected ({n},)")
+        bodies.radii = dict(enumerate(r.tolist()))
+    return bodies
+
+
 def _read_integrator(top: Fields) -> tuple[str, dict[str, Any]]:
     """``integrator: name`` or ``integrator: {name: ..., <settings>}``."""
     value = top.raw("integrator")
@@ -159,7 +207,7 @@ def _read_integrator(top: Fields) -> tuple[str, dict[str, Any]]:
                         f"{describe(value)}", key="integrator")
 
 
-def _build(doc: Any, source: str, default_name: str) -> Scenario:
+def _build(doc: Any, source: str, default_name: str, given: BodySet | None = None) -> Scenario:
     from orbitsim.units import UNIT_SYSTEMS
 
     if doc is None:
@@ -198,7 +246,7 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                                       "needs output.elements: true")
     grid_step = _grid_step(dt, t_end, t_start, interval, adaptive)
     checkpoint_every, checkpoint_seconds = _read_checkpoint(output, times, grid_step)
-    bodies = read_bodies(top, G, units)
+    bodies = read_bodies(top, G, units) if given is None else given  # given: a stored scenario's arrays
     m, x, v = bodies.arrays()
     radii = bodies.radii_array()
     events = read_events(top, radii)

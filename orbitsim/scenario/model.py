@@ -351,8 +351,32 @@ class Scenario:
 
     @property
     def sha256(self) -> str:
-        """Hex SHA-256 of :meth:`to_yaml` (UTF-8): identifies what was run, not where it came from."""
-        return hashlib.sha256(self.to_yaml().encode("utf-8")).hexdigest()
+        """Hex SHA-256 of :meth:`to_yaml` (UTF-8): identifies what was run, not where it came from.
+
+        Computed once; a large scenario's text is hashed line by line rather than built whole.
+        """
+        cached = self.__dict__.get("_sha256")
+        if cached is None:
+            if "_yaml" in self.__dict__ or self.stored_form()[1] is None:  # the text is at hand, or small
+                cached = hashlib.sha256(self.to_yaml().encode("utf-8")).hexdigest()
+            else:
+                from orbitsim.scenario.serialize import scenario_text_sha256
+
+                cached = scenario_text_sha256(self)
+            self._set("_sha256", cached)
+        return cached
+
+    def stored_form(self) -> tuple[str, dict[str, np.ndarray] | None]:
+        """What a trace or a checkpoint stores: the whole :meth:`to_yaml` text, or for a large
+        scenario the text without its per-body rows and the rows as arrays (see
+        :func:`orbitsim.scenario.serialize.stored_form`). Built once and kept."""
+        cached = self.__dict__.get("_stored")
+        if cached is None:
+            from orbitsim.scenario.serialize import stored_form
+
+            cached = stored_form(self)
+            self._set("_stored", cached)
+        return cached
 
     def with_overrides(self, **changes: Any) -> Scenario:
         """A new, re-validated Scenario with some fields replaced.
@@ -371,6 +395,10 @@ class Scenario:
         new = dataclasses.replace(self, **fields)
         if not {"names", "masses", "positions", "velocities"} & fields.keys():
             new.remember_origins(self.origins)
+        if fields.keys() <= {"source"}:  # not part of the text: its hash and stored form stay (seconds at 10^6 bodies)
+            for kept in ("_yaml", "_sha256", "_stored"):
+                if kept in self.__dict__:
+                    new._set(kept, self.__dict__[kept])
         return new
 
     def remember_origins(self, origins: Any) -> None:
