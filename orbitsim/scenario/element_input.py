@@ -7,8 +7,9 @@ One of each group must be given (or takes its default):
 - orientation of the pericentre: ``omega`` (argument) or ``pomega`` (longitude, pomega = Omega + omega;
   on a retrograde orbit, cos(inc) <= 0, pomega = Omega - omega, REBOUND's convention);
 - position on the orbit: ``M`` or ``f`` (mean or true anomaly) or ``l`` or ``theta`` (mean or true
-  longitude, l = pomega + M, theta = pomega + f; retrograde: l = pomega - M, theta = pomega - f); none of them means f = 0, at pericentre, REBOUND's
-  rule (``rebound.Particle``, f = 0 when no anomaly or longitude is passed), and ``orbitsim validate`` says so.
+  longitude, l = pomega + M, theta = pomega + f; retrograde: l = pomega - M, theta = pomega - f);
+  none of them means f = 0, at pericentre, REBOUND's rule (``rebound.Particle``, f = 0 when no
+  anomaly or longitude is passed), and ``orbitsim validate`` says so.
 
 Angles are in the scenario's ``angles`` unit (degrees unless ``angles: rad``), or strings
 ``"90 deg"``/``"1.57 rad"``; every error about an element names that unit, since a radian value
