@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from orbitsim.stopping import Stopper
+from orbitsim.stopping import Stopper, StopRequest
 
 if TYPE_CHECKING:
     from orbitsim.checkpoint.sinks import RunStart
@@ -123,7 +123,11 @@ class RunLoop:
             chunks = self.sim.chunks(plan, record_positions=self.sink.record_positions, yield_empty=True)
             while True:
                 self.safe = False  # a stop raised inside the next call finds the state ahead of the samples
-                chunk = next(chunks, None)
+                try:
+                    chunk = next(chunks, None)
+                except StopRequest:  # unless the stop undid a kernel call: then it is the last chunk's state
+                    self.safe = self.sim.call_undone
+                    raise
                 if chunk is None:
                     break
                 with stopper.critical():
