@@ -114,7 +114,8 @@ class RunLoop:
         self.sim = self._make_simulation(threads)
         self.safe = True
         with stopper.critical():
-            self.sink.set_attrs(threads=int(self.sim.threads_used))  # known only once numba is set up
+            # known only once numba is set up; the choice without --threads is orbitsim.cores'
+            self.sink.set_attrs(threads=int(self.sim.threads_used), threads_choice=self.sim.threads_choice)
             if self.history:  # where `run --from` changed the scheme or dt (orbitsim.checkpoint.switch)
                 self.sink.set_attrs(integrator_history=self.history)
             self.checkpoints.initial(self)

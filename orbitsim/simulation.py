@@ -92,7 +92,9 @@ class Simulation:
     t0 : float
         Time of step 0; sample n is at ``t0 + n * dt``.
     threads : int, optional
-        Numba threads for the parallel kernels (default: ``NUMBA_NUM_THREADS``).
+        Numba threads for the parallel kernels (default: one per core that other processes leave
+        free now, at most ``NUMBA_NUM_THREADS``: :mod:`orbitsim.cores`; :attr:`threads_choice` says
+        why). Results do not depend on it.
     settings : dict
         Integrator settings (its module's ``SETTINGS``).
     events : EventsConfig, optional
@@ -127,8 +129,12 @@ class Simulation:
     forces: Any = None
 
     def __post_init__(self) -> None:
+        import numba
+
         from orbitsim._jit import set_num_threads
+        from orbitsim.cores import choose_threads
         from orbitsim.integrators.registry import get_module
+        from orbitsim.physics.gravity import PARALLEL_MIN_N
 
         if not (math.isfinite(self.dt) and self.dt != 0.0):
             raise SimulationError(f"dt must be a finite non-zero number, got {self.dt}")
@@ -138,7 +144,10 @@ class Simulation:
             raise SimulationError(f"G must be > 0, got {self.G}")
         self._module = get_module(self.integrator)
         self.spec: IntegratorSpec = self._module.SPEC
-        self.threads_used = set_num_threads(self.threads)
+        # Without a count, one thread per core other processes leave free (orbitsim.cores).
+        count, self.threads_choice = choose_threads(self.threads, numba.config.NUMBA_NUM_THREADS,
+                                                    int(np.size(self.masses)) >= PARALLEL_MIN_N)
+        self.threads_used = set_num_threads(count)
         self.call_undone = False  # True once a stop undid a jitted call (_call_kernels): the state is as before it
         self._run = self._module.run
         if self.forces is not None:
@@ -419,7 +428,7 @@ def simulate(
     record_positions : bool
         Keep positions and velocities at every sample.
     threads : int, optional
-        Numba threads (default: ``NUMBA_NUM_THREADS``); results do not depend on it.
+        Numba threads (default: the cores free now, :mod:`orbitsim.cores`); results do not depend on it.
     on_chunk : callable, optional
         Called with every :class:`SampleChunk` as it is produced.
     forces : ForceSet, optional

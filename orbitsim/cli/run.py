@@ -91,7 +91,9 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
     With an events: section the summary adds a line of what happened (close encounters,
     collisions, escapes, unresolved steps), and the trace holds them all.
     A run expected to take more than an hour, or more than 10 s a step (timed on this machine, as
-    `orbitsim validate` prints it), is announced by a note before its first step.
+    `orbitsim validate` prints it), is announced by a note before its first step. Without
+    --threads a run uses one thread per core that other processes leave free (`orbitsim info`
+    shows the choice).
 
     \b
     Exit codes: 0 complete, 2 bad input (or another process writes OUT), 3 diverged, 4 an I/O
