@@ -22,6 +22,8 @@ Every jitted function in orbitsim is decorated with :func:`jit` (exact IEEE arit
   kernels skip Python's zero checks; non-finite states are caught by the divergence check.
 * ``nogil=True``: lets callers run kernels from threads (Dask workers, progress bars).
 * ``boundscheck=False`` (the default) in production; tests may run with ``NUMBA_DISABLE_JIT=1``.
+* :func:`stop_requested`: the flag the O(N^2) kernels look at between row blocks, so that a stop
+  (Ctrl-C, SIGTERM) reaches a kernel that runs for minutes (see its docstring).
 
 Never build two dispatchers from one Python function with different flags while ``cache=True``:
 they would share one cache entry.
@@ -29,6 +31,7 @@ they would share one cache entry.
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 from collections.abc import Callable
@@ -88,6 +91,8 @@ os.environ["ORBITSIM_CACHE_DIR"] = str(CACHE_ROOT)
 os.environ["NUMBA_CACHE_DIR"] = str(CACHE_DIR)
 
 import numba  # noqa: E402
+from llvmlite import binding as _llvm_binding  # noqa: E402
+from numba.extending import intrinsic, overload  # noqa: E402
 
 if numba.config.CACHE_DIR != os.environ["NUMBA_CACHE_DIR"]:
     numba.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
@@ -140,3 +145,73 @@ def set_num_threads(n: int | None) -> int:
             )
         numba.set_num_threads(n)
     return int(numba.get_num_threads())
+
+
+# -- the kernels' stop flag --------------------------------------------------------------------------
+
+#: The C symbol of :data:`_STOP_FLAG`, by which compiled code finds it.
+_STOP_SYMBOL = "orbitsim_stop_kernels"
+#: Non-zero while the kernels are asked to stop (:func:`stop_kernels`). A C int, not a numpy array:
+#: Numba bakes a global array's contents into the machine code as constants, so a kernel would
+#: never see it change; this int lives at a fixed address that the compiled code loads from.
+_STOP_FLAG = ctypes.c_int32(0)
+# Registered before any kernel that reads it is compiled or loaded from the on-disk cache: cached
+# machine code names the symbol, and the loader resolves it in every new process from this table.
+_llvm_binding.add_symbol(_STOP_SYMBOL, ctypes.addressof(_STOP_FLAG))
+
+
+def stop_requested() -> bool:
+    """True while the kernels are asked to stop (:func:`stop_kernels`).
+
+    Jitted code calls it between row blocks of the O(N^2) loops (the force sum, the potential),
+    where it is one atomic load of a C int through :func:`_load_stop_flag`: about a nanosecond per
+    two rows of N pairs. A kernel that sees it returns early, leaving its output incomplete; the
+    caller (:func:`orbitsim.stopping.run_interruptible`) throws the call's results away. Called
+    from Python (and with ``NUMBA_DISABLE_JIT=1``) it reads the same flag.
+    """
+    return _STOP_FLAG.value != 0
+
+
+#: Counts every raising and every lowering of the flag (odd while it is up): a kernel call made
+#: where no stop is handled (another thread) compares it before and after, and redoes a call that a
+#: stop meant for the main thread's run may have cut short (:func:`orbitsim.stopping.run_interruptible`).
+_stop_sequence = 0
+
+
+def stop_kernels(stop: bool) -> None:
+    """Ask every running kernel of this process to stop (``True``), or let kernels run again (``False``)."""
+    global _stop_sequence
+    if stop and not _STOP_FLAG.value:
+        _stop_sequence += 1
+        _STOP_FLAG.value = 1
+    elif not stop and _STOP_FLAG.value:
+        _STOP_FLAG.value = 0
+        _stop_sequence += 1
+
+
+def stop_sequence() -> int:
+    """How often the flag went up or down so far; odd while it is up (see :data:`_stop_sequence`)."""
+    return _stop_sequence
+
+
+@intrinsic
+def _load_stop_flag(typingctx):
+    """The flag as a boolean, by a monotonic atomic load: the compiler may neither keep the value
+    in a register across a loop nor drop the load (a plain load of a value the loop never writes
+    could be hoisted out of it, and the kernel would never see the flag change)."""
+    from llvmlite import ir
+
+    def codegen(context, builder, signature, args):
+        flag = builder.module.globals.get(_STOP_SYMBOL)
+        if flag is None:
+            flag = ir.GlobalVariable(builder.module, ir.IntType(32), _STOP_SYMBOL)
+            flag.linkage = "external"
+        value = builder.load_atomic(flag, "monotonic", 4)
+        return builder.icmp_unsigned("!=", value, ir.Constant(ir.IntType(32), 0))
+
+    return numba.types.boolean(), codegen
+
+
+@overload(stop_requested, inline="always")
+def _stop_requested_jitted():
+    return lambda: _load_stop_flag()

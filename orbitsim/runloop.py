@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from orbitsim.stopping import Stopper
+from orbitsim.stopping import Stopper, StopRequest
 
 if TYPE_CHECKING:
     from orbitsim.checkpoint.sinks import RunStart
@@ -145,7 +145,8 @@ class RunLoop:
         self.counters_before = self._scheme_counters() if self.start_point is not None else None
         self.safe = True
         with stopper.critical():
-            self.sink.set_attrs(threads=int(self.sim.threads_used))  # known only once numba is set up
+            # known only once numba is set up; the choice without --threads is orbitsim.cores'
+            self.sink.set_attrs(threads=int(self.sim.threads_used), threads_choice=self.sim.threads_choice)
             if self.history:  # where `run --from` changed the scheme or dt (orbitsim.checkpoint.switch)
                 self.sink.set_attrs(integrator_history=self.history)
             self.checkpoints.initial(self)
@@ -154,7 +155,11 @@ class RunLoop:
             chunks = self.sim.chunks(plan, record_positions=self.sink.record_positions, yield_empty=True)
             while True:
                 self.safe = False  # a stop raised inside the next call finds the state ahead of the samples
-                chunk = next(chunks, None)
+                try:
+                    chunk = next(chunks, None)
+                except StopRequest:  # unless the stop undid a kernel call: then it is the last chunk's state
+                    self.safe = self.sim.call_undone
+                    raise
                 if chunk is None:
                     break
                 with stopper.critical():

@@ -104,7 +104,8 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
     progress : callable, optional
         ``progress(steps_done, steps_total)``, called after every jitted call.
     threads : int, optional
-        Numba threads (default ``NUMBA_NUM_THREADS``); results do not depend on it.
+        Numba threads (default: one per core other processes leave free now, at most
+        ``NUMBA_NUM_THREADS``: :mod:`orbitsim.cores`); results do not depend on it.
     on_chunk : callable, optional
         ``on_chunk(simulation, chunk)`` after each chunk of samples is written.
     stop : callable, optional

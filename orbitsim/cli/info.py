@@ -89,7 +89,9 @@ def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
     click.echo(f"trace:    {summary['path']}")
     for key in _HEADER:
         if key in attrs and attrs[key] != "":
-            click.echo(f"  {key:<20} {_show(attrs[key], full=key == 'message')}")
+            # how the run's thread count was chosen (orbitsim.cores), beside it
+            why = f" ({attrs['threads_choice']})" if key == "threads" and attrs.get("threads_choice") else ""
+            click.echo(f"  {key:<20} {_show(attrs[key], full=key == 'message')}{why}")
     span = _time_range(trace, summary["n_samples"])
     if span and attrs.get("status") == "diverged":
         span += " (over the samples kept, the last finite ones; then the run diverged)"
@@ -103,7 +105,7 @@ def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
     for name, shape in sorted(summary["shapes"].items()):
         click.echo(f"  {name:<20} {shape}")
     click.echo("attributes:")
-    rest = sorted(k for k in attrs if k not in _HEADER and k != "integrator_history")
+    rest = sorted(k for k in attrs if k not in _HEADER and k not in ("integrator_history", "threads_choice"))
     width = max((len(k) for k in rest), default=0)
     for key in rest:
         value = _show(attrs[key])

@@ -179,8 +179,11 @@ def quiet_option() -> Decorator:
                         help="Print nothing but errors (no progress bar, no summary). Example: -q")
 
 
-def threads_option() -> Decorator:
-    """--threads N: Numba threads."""
+def threads_option(*, free_cores_default: bool = True) -> Decorator:
+    """--threads N: Numba threads; by default one per core other processes leave free
+    (:mod:`orbitsim.cores`), or with ``free_cores_default=False`` (``bench``) all of them."""
+    default = ("default: one per core that other processes leave free now, at most NUMBA_NUM_THREADS or all "
+               "cores" if free_cores_default else "default and maximum: NUMBA_NUM_THREADS or all cores")
     return click.option("--threads", type=ThreadCount(), default=None,
-                        help="Threads for the force kernel (default and maximum: NUMBA_NUM_THREADS or all cores); "
-                             "results are bit-identical for any count. Example: --threads 2")
+                        help=f"Threads for the force kernel ({default}); results are bit-identical for any count. "
+                             "Example: --threads 2")

@@ -92,8 +92,10 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
     even a hard kill can be resumed; --from TRACE.h5 extends a complete run (SCENARIO optional).
     With an events: section the summary adds a line of what happened (close encounters,
     collisions, escapes, unresolved steps), and the trace holds them all.
-    A run expected to take more than an hour (timed on this machine, as `orbitsim validate`
-    prints it) is announced by a note before its first step.
+    A run expected to take more than an hour, or more than 10 s a step (timed on this machine, as
+    `orbitsim validate` prints it), is announced by a note before its first step. Without
+    --threads a run uses one thread per core that other processes leave free (`orbitsim info`
+    shows the choice).
 
     \b
     Exit codes: 0 complete, 2 bad input (or another process writes OUT), 3 diverged, 4 an I/O
@@ -325,12 +327,19 @@ class _LongRunNote:
             self.bar(done, total)
 
     def _warn_if_long(self, steps: int) -> None:
-        from orbitsim.estimate import LONG_RUN_S, estimate_time
+        from orbitsim.estimate import LONG_RUN_S, SLOW_STEP_S, estimate_time
 
         estimate = estimate_time(self.scenario, threads=self.threads, steps=steps)
-        if estimate is not None and estimate.total_s > LONG_RUN_S:
+        if estimate is None:
+            return
+        # One line either way; a stop (Ctrl-C) cuts a slow step short and throws it away (orbitsim.stopping).
+        slow = (f"; each step takes over {SLOW_STEP_S:.0f} s: Ctrl-C stops within 2 s and discards the step in "
+                "progress" if estimate.step_s > SLOW_STEP_S else "")
+        if estimate.total_s > LONG_RUN_S:
             hint = "" if self.scenario.checkpoints else "; --checkpoint-seconds 600 makes it resumable after a kill"
-            warn(f"this run is expected to take a long time: {estimate.describe()}{hint}")
+            warn(f"this run is expected to take a long time: {estimate.describe()}{hint}{slow}")
+        elif slow:
+            warn(f"this run's steps are expected to be slow: {estimate.describe()}{slow}")
 
 
 class _ProgressBar:
