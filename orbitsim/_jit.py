@@ -9,7 +9,8 @@ Every jitted function in orbitsim is decorated with :func:`jit` (exact IEEE arit
   (:data:`CACHE_DIR`). Numba's cache index only watches the file that holds the cached function, so
   a caller in one module keeps running a stale copy of a callee edited in another module. Keying
   the directory by the hash of every source file means an edited tree never loads stale machine
-  code. ``orbitsim cache clear`` removes old directories.
+  code. ``orbitsim cache clear`` removes old directories. A ``NUMBA_CACHE_DIR`` the user set is
+  where the generations go (:func:`cache_root`), never a flat cache of its own.
 * ``fastmath``: off everywhere except :func:`jit_force`, which allows only ``reassoc`` and
   ``contract`` (no ``nsz``/``arcp``/``afn``) so LLVM can vectorise the inner j-sum of the force
   loop (4.5x measured) and fuse its multiply-adds. Its cost was a relative change of ~4e-15 in
@@ -21,6 +22,8 @@ Every jitted function in orbitsim is decorated with :func:`jit` (exact IEEE arit
   kernels skip Python's zero checks; non-finite states are caught by the divergence check.
 * ``nogil=True``: lets callers run kernels from threads (Dask workers, progress bars).
 * ``boundscheck=False`` (the default) in production; tests may run with ``NUMBA_DISABLE_JIT=1``.
+* :func:`stop_requested`: the flag the O(N^2) kernels look at between row blocks, so that a stop
+  (Ctrl-C, SIGTERM) reaches a kernel that runs for minutes (see its docstring).
 
 Never build two dispatchers from one Python function with different flags while ``cache=True``:
 they would share one cache entry.
@@ -28,6 +31,7 @@ they would share one cache entry.
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 from collections.abc import Callable
@@ -58,21 +62,37 @@ def _source_hash() -> str:
     return digest.hexdigest()[:16]
 
 
-def cache_root() -> Path:
-    """Directory that holds every orbitsim cache generation (``$ORBITSIM_CACHE_DIR`` overrides)."""
+def cache_root() -> tuple[Path, str]:
+    """Directory that holds every orbitsim cache generation, and what chose it.
+
+    ``$ORBITSIM_CACHE_DIR``; else ``$NUMBA_CACHE_DIR/orbitsim``: Numba's own setting is honoured as
+    the place, with orbitsim's generations inside it (a flat Numba cache would keep running a
+    callee's old machine code after an upgrade, see the module docstring); else
+    ``$XDG_CACHE_HOME/orbitsim/numba`` (``~/.cache`` without XDG_CACHE_HOME).
+    """
     env = os.environ.get("ORBITSIM_CACHE_DIR")
     if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(xdg) / "orbitsim" / "numba"
+        return Path(env), "ORBITSIM_CACHE_DIR"
+    numba_dir = os.environ.get("NUMBA_CACHE_DIR")
+    if numba_dir:
+        return Path(numba_dir) / "orbitsim", "NUMBA_CACHE_DIR"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return Path(xdg or str(Path.home() / ".cache")) / "orbitsim" / "numba", "XDG_CACHE_HOME" if xdg else "default"
 
 
-CACHE_DIR = cache_root() / f"{__version__}-{_source_hash()}"
+#: Where the cache generations are, and the variable that said so (``cache_root``).
+CACHE_ROOT, CACHE_ROOT_FROM = cache_root()
+CACHE_DIR = CACHE_ROOT / f"{__version__}-{_source_hash()}"
 
-# Must be set before numba reads its configuration, and before any function is decorated.
-os.environ.setdefault("NUMBA_CACHE_DIR", str(CACHE_DIR))
+# Must be set before numba reads its configuration, and before any function is decorated. The root
+# is exported too, so that a child process (a Dask worker) finds the same generation rather than
+# reading this NUMBA_CACHE_DIR as a user's and nesting another one inside it.
+os.environ["ORBITSIM_CACHE_DIR"] = str(CACHE_ROOT)
+os.environ["NUMBA_CACHE_DIR"] = str(CACHE_DIR)
 
 import numba  # noqa: E402
+from llvmlite import binding as _llvm_binding  # noqa: E402
+from numba.extending import intrinsic, overload  # noqa: E402
 
 if numba.config.CACHE_DIR != os.environ["NUMBA_CACHE_DIR"]:
     numba.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
@@ -125,3 +145,73 @@ def set_num_threads(n: int | None) -> int:
             )
         numba.set_num_threads(n)
     return int(numba.get_num_threads())
+
+
+# -- the kernels' stop flag --------------------------------------------------------------------------
+
+#: The C symbol of :data:`_STOP_FLAG`, by which compiled code finds it.
+_STOP_SYMBOL = "orbitsim_stop_kernels"
+#: Non-zero while the kernels are asked to stop (:func:`stop_kernels`). A C int, not a numpy array:
+#: Numba bakes a global array's contents into the machine code as constants, so a kernel would
+#: never see it change; this int lives at a fixed address that the compiled code loads from.
+_STOP_FLAG = ctypes.c_int32(0)
+# Registered before any kernel that reads it is compiled or loaded from the on-disk cache: cached
+# machine code names the symbol, and the loader resolves it in every new process from this table.
+_llvm_binding.add_symbol(_STOP_SYMBOL, ctypes.addressof(_STOP_FLAG))
+
+
+def stop_requested() -> bool:
+    """True while the kernels are asked to stop (:func:`stop_kernels`).
+
+    Jitted code calls it between row blocks of the O(N^2) loops (the force sum, the potential),
+    where it is one atomic load of a C int through :func:`_load_stop_flag`: about a nanosecond per
+    two rows of N pairs. A kernel that sees it returns early, leaving its output incomplete; the
+    caller (:func:`orbitsim.stopping.run_interruptible`) throws the call's results away. Called
+    from Python (and with ``NUMBA_DISABLE_JIT=1``) it reads the same flag.
+    """
+    return _STOP_FLAG.value != 0
+
+
+#: Counts every raising and every lowering of the flag (odd while it is up): a kernel call made
+#: where no stop is handled (another thread) compares it before and after, and redoes a call that a
+#: stop meant for the main thread's run may have cut short (:func:`orbitsim.stopping.run_interruptible`).
+_stop_sequence = 0
+
+
+def stop_kernels(stop: bool) -> None:
+    """Ask every running kernel of this process to stop (``True``), or let kernels run again (``False``)."""
+    global _stop_sequence
+    if stop and not _STOP_FLAG.value:
+        _stop_sequence += 1
+        _STOP_FLAG.value = 1
+    elif not stop and _STOP_FLAG.value:
+        _STOP_FLAG.value = 0
+        _stop_sequence += 1
+
+
+def stop_sequence() -> int:
+    """How often the flag went up or down so far; odd while it is up (see :data:`_stop_sequence`)."""
+    return _stop_sequence
+
+
+@intrinsic
+def _load_stop_flag(typingctx):
+    """The flag as a boolean, by a monotonic atomic load: the compiler may neither keep the value
+    in a register across a loop nor drop the load (a plain load of a value the loop never writes
+    could be hoisted out of it, and the kernel would never see the flag change)."""
+    from llvmlite import ir
+
+    def codegen(context, builder, signature, args):
+        flag = builder.module.globals.get(_STOP_SYMBOL)
+        if flag is None:
+            flag = ir.GlobalVariable(builder.module, ir.IntType(32), _STOP_SYMBOL)
+            flag.linkage = "external"
+        value = builder.load_atomic(flag, "monotonic", 4)
+        return builder.icmp_unsigned("!=", value, ir.Constant(ir.IntType(32), 0))
+
+    return numba.types.boolean(), codegen
+
+
+@overload(stop_requested, inline="always")
+def _stop_requested_jitted():
+    return lambda: _load_stop_flag()

@@ -1,5 +1,6 @@
 """How long a run will take, measured on this machine: ``orbitsim validate`` prints it and
-``orbitsim run`` warns before a run expected to take more than :data:`LONG_RUN_S`.
+``orbitsim run`` warns before a run expected to take more than :data:`LONG_RUN_S`, or whose steps
+are each expected to take more than :data:`SLOW_STEP_S`.
 
 The estimate times the scenario's own integrator on a subsample of its bodies (see
 :func:`estimate_time` for the assumptions); runs too small to be long are not timed at all
@@ -19,14 +20,21 @@ import numpy as np
 from orbitsim.preflight import sample_count
 from orbitsim.scenario import Scenario
 
-__all__ = ["LONG_RUN_S", "TimeEstimate", "estimate_time", "format_seconds", "rough_work", "usable_threads"]
+__all__ = ["LONG_RUN_S", "SLOW_STEP_S", "TimeEstimate", "estimate_time", "format_seconds", "rough_work",
+           "usable_threads"]
 
 #: ``orbitsim run`` warns before a run estimated to take longer than this (seconds).
 LONG_RUN_S = 3600.0
+#: ... and says before a run whose steps are estimated to take longer than this (seconds) that a
+#: stop discards the step in progress (the progress bar then moves once in this long).
+SLOW_STEP_S = 10.0
 
 #: Runs below this much work (:func:`rough_work`) get no time estimate: even on a slow, busy
-#: machine (1e8 units a second; a 2-core laptop sustains 2e8-6e8) they take under two minutes.
+#: machine (1e8 units a second; a 2-core laptop sustains 2e8-6e8) they take under two minutes,
+#: unless one step is above :data:`SLOW_STEP_MIN_WORK`.
 ESTIMATE_MIN_WORK = 1e10
+#: A step below this much work takes under :data:`SLOW_STEP_S` at 1e8 units a second.
+SLOW_STEP_MIN_WORK = SLOW_STEP_S * 1e8
 #: Bodies in the subsample that is timed: big enough that the pair loop dominates as it does at
 #: large N (and above the parallel threshold of 384), small enough that a step takes milliseconds.
 TIMED_BODIES = 1000
@@ -71,12 +79,19 @@ def rough_work(scenario: Scenario, steps: int | None = None) -> float:
     Units: a force evaluation costs N(N-1)/2 pairs plus 16 per body plus 64 per call; a sample costs
     the same again (its potential energy). Only used to skip the estimate for runs that cannot be long.
     """
+    steps = scenario.steps if steps is None else steps
+    return steps * step_work(scenario) + sample_count(scenario)[0] * _eval_work(scenario.n_bodies)
+
+
+def _eval_work(n: int) -> float:
+    return n * (n - 1) / 2 + 16 * n + 64
+
+
+def step_work(scenario: Scenario) -> float:
+    """:func:`rough_work` of one step."""
     from orbitsim.integrators.registry import get_spec
 
-    n = scenario.n_bodies
-    per_eval = n * (n - 1) / 2 + 16 * n + 64
-    steps = scenario.steps if steps is None else steps
-    return steps * get_spec(scenario.integrator).force_evals * per_eval + sample_count(scenario)[0] * per_eval
+    return get_spec(scenario.integrator).force_evals * _eval_work(scenario.n_bodies)
 
 
 def estimate_time(scenario: Scenario, *, threads: int | None = None, steps: int | None = None,
@@ -113,7 +128,8 @@ def estimate_time(scenario: Scenario, *, threads: int | None = None, steps: int 
     Returns
     -------
     TimeEstimate or None
-        None for a run below :data:`ESTIMATE_MIN_WORK` (not measured at all: it cannot matter), for
+        None for a run below :data:`ESTIMATE_MIN_WORK` whose steps are below :data:`SLOW_STEP_MIN_WORK`
+        (not measured at all: it cannot matter), for
         a thread count the run will refuse, when the subsample diverged while being timed, or for
         an adaptive scheme (its step count is not known before it runs).
     """
@@ -124,7 +140,7 @@ def estimate_time(scenario: Scenario, *, threads: int | None = None, steps: int 
     from orbitsim.simulation import Simulation
 
     steps = scenario.steps if steps is None else steps
-    if not always and rough_work(scenario, steps) < ESTIMATE_MIN_WORK:
+    if not always and rough_work(scenario, steps) < ESTIMATE_MIN_WORK and step_work(scenario) < SLOW_STEP_MIN_WORK:
         return None
     try:
         run_threads = set_num_threads(threads)  # the count the run will use (set as the run would set it)

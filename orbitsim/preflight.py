@@ -204,10 +204,17 @@ def _potential(scenario: Scenario) -> float:
         r = np.sqrt(((x[None, :, :] - x[:, None, :]) ** 2).sum(axis=2) + eps * eps)
         terms = np.triu(m[None, :] / np.where(r > 0.0, r, 1.0), k=1)  # r = 0 only on the diagonal here
         return float(-G * np.sum(m * terms.sum(axis=1)))
+    import functools
+
+    import numba
+
     from orbitsim.physics.diagnostics import potential_energy, potential_rows_scratch
+    from orbitsim.stopping import run_interruptible
 
     pos = np.ascontiguousarray(scenario.positions.T)
-    return float(potential_energy(pos, m, G, eps * eps, potential_rows_scratch(n)))
+    # Minutes at N = 10^6: Ctrl-C stops it within milliseconds (orbitsim.stopping.run_interruptible).
+    call = functools.partial(potential_energy, pos, m, G, eps * eps, potential_rows_scratch(n))
+    return float(run_interruptible(call, numba.get_num_threads()))
 
 
 def _potential_error(scenario: Scenario) -> None:

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from orbitsim.stopping import Stopper
+from orbitsim.stopping import Stopper, StopRequest
 
 if TYPE_CHECKING:
     from orbitsim.checkpoint.sinks import RunStart
@@ -61,11 +61,40 @@ class RunSummary:
     events: str = ""
     scheme_counters: dict[str, Any] | None = None  # an adaptive scheme's own steps (ias15)
     unresolved_warning: str = ""  # a step too long for an orbit, seen at the samples of a run without events
+    # A continued run (resume, run --from): where it started, and what the earlier parts took. The
+    # totals above cover the whole run; the rate is this process's own work.
+    steps_before: int = 0
+    wall_before_s: float = 0.0
+    scheme_counters_before: dict[str, Any] | None = None
+
+    @property
+    def continued(self) -> bool:
+        """Whether this process continued a run that earlier processes began."""
+        return self.steps_before > 0 or self.wall_before_s > 0.0
+
+    @property
+    def steps_here(self) -> int:
+        """Steps this process integrated (all of them, for a run that was not continued)."""
+        return max(0, self.steps_done - self.steps_before)
+
+    @property
+    def wall_here_s(self) -> float:
+        """Wall time of this process's part of the run."""
+        return max(0.0, self.wall_time_s - self.wall_before_s)
 
     @property
     def steps_per_s(self) -> float:
-        """Steps per second of wall time (compile time included on a cold cache)."""
-        return self.steps_done / self.wall_time_s if self.wall_time_s > 0 else math.inf
+        """This process's steps per second of its wall time (compile time included on a cold cache)."""
+        return self.steps_here / self.wall_here_s if self.wall_here_s > 0 else math.inf
+
+    def scheme_counters_here(self) -> dict[str, Any] | None:
+        """An adaptive scheme's counts (steps, rejections) made by this process: the trace keeps the
+        whole run's (:attr:`scheme_counters`)."""
+        if self.scheme_counters is None or self.scheme_counters_before is None:
+            return self.scheme_counters
+        before = self.scheme_counters_before
+        return {key: value - before[key] if isinstance(value, int) and key in before else value
+                for key, value in self.scheme_counters.items()}
 
 
 class RunLoop:
@@ -81,6 +110,7 @@ class RunLoop:
         self.start_point = start
         self.sim: Simulation | None = None
         self.step_check: Any = None  # orbitsim.events.sampled.StepCheck, for a run without events
+        self.counters_before: dict[str, Any] | None = None  # a continuation's scheme counters at its start
         self.samples = 0
         self.last_time = math.nan
         self.last_step = 0
@@ -117,9 +147,11 @@ class RunLoop:
         from orbitsim.events.sampled import step_check
 
         self.step_check = step_check(self.scenario, self.sim)  # looks at the state between calls only
+        self.counters_before = self._scheme_counters() if self.start_point is not None else None
         self.safe = True
         with stopper.critical():
-            self.sink.set_attrs(threads=int(self.sim.threads_used))  # known only once numba is set up
+            # known only once numba is set up; the choice without --threads is orbitsim.cores'
+            self.sink.set_attrs(threads=int(self.sim.threads_used), threads_choice=self.sim.threads_choice)
             if self.history:  # where `run --from` changed the scheme or dt (orbitsim.checkpoint.switch)
                 self.sink.set_attrs(integrator_history=self.history)
             self.checkpoints.initial(self)
@@ -128,7 +160,11 @@ class RunLoop:
             chunks = self.sim.chunks(plan, record_positions=self.sink.record_positions, yield_empty=True)
             while True:
                 self.safe = False  # a stop raised inside the next call finds the state ahead of the samples
-                chunk = next(chunks, None)
+                try:
+                    chunk = next(chunks, None)
+                except StopRequest:  # unless the stop undid a kernel call: then it is the last chunk's state
+                    self.safe = self.sim.call_undone
+                    raise
                 if chunk is None:
                     break
                 with stopper.critical():
@@ -264,8 +300,7 @@ class RunLoop:
             when = f"last sample at t = {self.last_time:g}" if self.samples else "before the first sample"
             message = f"interrupted by {cause} after {taken} of {self.steps} steps ({when})"
             steps_done = final.steps_done if final is not None else self.last_step
-        counters = getattr(self.sim.module, "counters", None) if self.sim is not None else None
-        scheme_counters = counters(self.sim.work) if counters is not None else None
+        scheme_counters = self._scheme_counters()
         if scheme_counters is not None:  # an adaptive scheme's own steps (accepted, rejected, force evaluations)
             self.sink.set_attrs(**{f"{self.sim.spec.name}_{key}": value for key, value in scheme_counters.items()})
         unresolved = self.step_check.warning if self.step_check is not None else ""
@@ -281,7 +316,14 @@ class RunLoop:
             threads=int(self.sim.threads_used) if self.sim else 0, message=message,
             resumable=status == "interrupted" and final is not None,
             events=outcome.summary(self.scenario.names) if outcome is not None else "",
-            scheme_counters=scheme_counters, unresolved_warning=unresolved)
+            scheme_counters=scheme_counters, steps_before=self.start_point.checkpoint.steps_done if self.start_point
+            else 0, wall_before_s=self.checkpoints.prior_wall, scheme_counters_before=self.counters_before,
+            unresolved_warning=unresolved)
+
+    def _scheme_counters(self) -> dict[str, Any] | None:
+        """An adaptive scheme's own counts so far (None for a fixed-step scheme, or before the simulation)."""
+        counters = getattr(self.sim.module, "counters", None) if self.sim is not None else None
+        return counters(self.sim.work) if counters is not None else None
 
     def _divergence_message(self) -> str:
         if self.energy_failure is not None:

@@ -44,9 +44,13 @@ def default_output(scenario: Scenario) -> Path:
 
 
 def trace_attrs(scenario: Scenario, threads: int) -> dict[str, Any]:
-    """Root attributes describing a scenario's run (the writer adds format, status and provenance)."""
+    """Root attributes describing a scenario's run (the writer adds format, status and provenance).
+
+    ``scenario`` is the stored form's text: a large scenario's bodies go into datasets beside it
+    (:mod:`orbitsim.io.stored_scenario`; :func:`orbitsim.checkpoint.sinks.open_sink` writes them).
+    """
     attrs: dict[str, Any] = {
-        "scenario": scenario.to_yaml(), "scenario_sha256": scenario.sha256, "scenario_name": scenario.name,
+        "scenario": scenario.stored_form()[0], "scenario_sha256": scenario.sha256, "scenario_name": scenario.name,
         "scenario_source": scenario.source, "integrator": scenario.integrator,
         "integrator_settings": json.dumps(scenario.integrator_settings, sort_keys=True),
         "dt": scenario.dt, "steps_requested": scenario.steps, "G": scenario.G, "softening": scenario.softening,
@@ -102,7 +106,8 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
     progress : callable, optional
         ``progress(steps_done, steps_total)``, called after every jitted call.
     threads : int, optional
-        Numba threads (default ``NUMBA_NUM_THREADS``); results do not depend on it.
+        Numba threads (default: one per core other processes leave free now, at most
+        ``NUMBA_NUM_THREADS``: :mod:`orbitsim.cores`); results do not depend on it.
     on_chunk : callable, optional
         ``on_chunk(simulation, chunk)`` after each chunk of samples is written.
     stop : callable, optional

@@ -14,6 +14,7 @@ The plan helpers and result types are re-exported here, where they used to live.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Iterator
@@ -43,6 +44,14 @@ __all__ = ["MAX_BUFFER_BYTES", "TARGET_CALL_SECONDS", "SampleChunk", "Simulation
 
 #: Upper bound on the sample buffer of one call, so recording positions stays flat in memory.
 MAX_BUFFER_BYTES = 32 * 2**20
+
+#: From this N on every jitted call goes through :func:`orbitsim.stopping.run_interruptible`: a stop
+#: reaches the running kernels within milliseconds, and the call is undone. Below it a call lasts
+#: about :data:`TARGET_CALL_SECONDS` and a step at most a few tens of milliseconds (16 force
+#: evaluations of 2048 bodies on half a busy core), so a stop lands between calls within the
+#: Stopper's grace; there the hand-off to the kernel thread (50-250 us a call measured on this
+#: 2-core machine, busy) would be a visible part of short calls (the first ones, a 5-body run).
+INTERRUPTIBLE_MIN_N = 2048
 
 
 def _as_state(masses: Any, positions: Any, velocities: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -83,7 +92,9 @@ class Simulation:
     t0 : float
         Time of step 0; sample n is at ``t0 + n * dt``.
     threads : int, optional
-        Numba threads for the parallel kernels (default: ``NUMBA_NUM_THREADS``).
+        Numba threads for the parallel kernels (default: one per core that other processes leave
+        free now, at most ``NUMBA_NUM_THREADS``: :mod:`orbitsim.cores`; :attr:`threads_choice` says
+        why). Results do not depend on it.
     settings : dict
         Integrator settings (its module's ``SETTINGS``).
     events : EventsConfig, optional
@@ -118,8 +129,12 @@ class Simulation:
     forces: Any = None
 
     def __post_init__(self) -> None:
+        import numba
+
         from orbitsim._jit import set_num_threads
+        from orbitsim.cores import choose_threads
         from orbitsim.integrators.registry import get_module
+        from orbitsim.physics.gravity import PARALLEL_MIN_N
 
         if not (math.isfinite(self.dt) and self.dt != 0.0):
             raise SimulationError(f"dt must be a finite non-zero number, got {self.dt}")
@@ -129,7 +144,11 @@ class Simulation:
             raise SimulationError(f"G must be > 0, got {self.G}")
         self._module = get_module(self.integrator)
         self.spec: IntegratorSpec = self._module.SPEC
-        self.threads_used = set_num_threads(self.threads)
+        # Without a count, one thread per core other processes leave free (orbitsim.cores).
+        count, self.threads_choice = choose_threads(self.threads, numba.config.NUMBA_NUM_THREADS,
+                                                    int(np.size(self.masses)) >= PARALLEL_MIN_N)
+        self.threads_used = set_num_threads(count)
+        self.call_undone = False  # True once a stop undid a jitted call (_call_kernels): the state is as before it
         self._run = self._module.run
         if self.forces is not None:
             self._check_forces()
@@ -188,7 +207,8 @@ class Simulation:
         self.acc = np.zeros((3, self.n))
         self.rows = potential_rows_scratch(self.n)
         G, eps2, slabs, bounds = self.force
-        accelerations(self.pos, self.m, G, eps2, self.acc, slabs, bounds)
+        self._call_kernels(functools.partial(accelerations, self.pos, self.m, G, eps2, self.acc, slabs, bounds),
+                           undo=False)  # a stop here ends the run before its first step: nothing to undo
         self.step_force = self.force  # the context the run loop gets: the forced one with forces
         if self.forces is not None:
             from orbitsim.forces.hooks import forced_context
@@ -200,8 +220,9 @@ class Simulation:
         (:func:`orbitsim.forces.kernels.force_energy`) in a run with forces."""
         from orbitsim.physics.diagnostics import kinetic_energy, potential_energy
 
-        energy = float(kinetic_energy(self.vel, self.m)) + float(
-            potential_energy(self.pos, self.m, self.force[0], self.force[1], self.rows))
+        potential = self._call_kernels(functools.partial(potential_energy, self.pos, self.m, self.force[0],
+                                                         self.force[1], self.rows), undo=False)
+        energy = float(kinetic_energy(self.vel, self.m)) + float(potential)
         if self.forces is not None:
             from orbitsim.forces.kernels import force_energy
 
@@ -261,11 +282,12 @@ class Simulation:
             out = buffers.views(self.rows)
             start = time.perf_counter()
             if watcher is None:
-                written, n_done, finite = self._run(
-                    state, self.step_force, self.dt, self.work, self.t0, self.steps_done, call_targets, record, out
-                )
+                written, n_done, finite = self._call_kernels(functools.partial(
+                    self._run, state, self.step_force, self.dt, self.work, self.t0, self.steps_done, call_targets,
+                    record, out))
             else:
-                written, n_done, finite, acted = watcher.call(self, call_targets, record, out)
+                written, n_done, finite, acted = self._call_kernels(
+                    functools.partial(watcher.call, self, call_targets, record, out))
             elapsed = time.perf_counter() - start
             self.steps_done = int(n_done)
             # Every recorded target is one sample, so the samples written are the targets consumed.
@@ -290,6 +312,49 @@ class Simulation:
                 yield self._halt_sample(buffers, keep_positions)
                 return
             budget = next_budget(budget, elapsed)
+
+    def _call_kernels(self, call: Callable[[], Any], *, undo: bool = True) -> Any:
+        """``call()``, a jitted call on this simulation's arrays; where one call can be long, stoppable.
+
+        From :data:`INTERRUPTIBLE_MIN_N` bodies on it runs through
+        :func:`orbitsim.stopping.run_interruptible`: a signal then stops the kernels within
+        milliseconds, and with ``undo`` every array the call may change (state, accelerations,
+        masses, the integrator's work, the events watch) is put back as it was before the call,
+        so the state stays the last whole step, the one the samples so far agree with, and
+        :attr:`call_undone` says so. The copies cost O(N) a call, against its O(N^2) steps.
+        """
+        self.call_undone = False
+        if self.n < INTERRUPTIBLE_MIN_N:
+            return call()
+        from orbitsim.stopping import run_interruptible
+
+        if not undo:
+            return run_interruptible(call, self.threads_used)
+        saved = [(array, array.copy()) for array in self._changing_arrays()]
+
+        def restore() -> None:
+            for array, copy in saved:
+                array[...] = copy
+            self.call_undone = True
+
+        return run_interruptible(call, self.threads_used, restore)
+
+    def _changing_arrays(self) -> list[np.ndarray]:
+        """Every array a jitted call may change: state, accelerations, masses (TRACE merges inside
+        a step), the integrator's work and the events watch (nested tuples of arrays)."""
+        arrays: list[np.ndarray] = []
+
+        def collect(obj: Any) -> None:
+            if isinstance(obj, np.ndarray):
+                arrays.append(obj)
+            elif isinstance(obj, tuple | list):
+                for item in obj:
+                    collect(item)
+
+        collect((self.pos, self.vel, self.acc, self.m, self.work))
+        if self.watcher is not None:
+            collect(self.watcher.watch)
+        return arrays
 
     def _halt_sample(self, buffers: SampleBuffers, keep_positions: bool) -> SampleChunk:
         """The sample of the state a run halted in (whatever the plan): a trace then ends where the
@@ -367,7 +432,7 @@ def simulate(
     record_positions : bool
         Keep positions and velocities at every sample.
     threads : int, optional
-        Numba threads (default: ``NUMBA_NUM_THREADS``); results do not depend on it.
+        Numba threads (default: the cores free now, :mod:`orbitsim.cores`); results do not depend on it.
     on_chunk : callable, optional
         Called with every :class:`SampleChunk` as it is produced.
     forces : ForceSet, optional

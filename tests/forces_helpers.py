@@ -20,6 +20,27 @@ CENTURY = 628.33195
 ARCSEC = 4.8481368e-06
 
 
+#: A star and two inclined, eccentric planets with strong GR (c = 100) about SOURCE (replace it with a
+#: body name): the compare and convergence tests with forces.
+GR_PLANETS_YAML = """\
+name: gr_planets
+units: nbody
+G: 1.0
+integrator: leapfrog4
+dt: 0.01
+steps: 1000
+output:
+  every: 10
+frame: barycentric
+bodies:
+  - {name: star, m: 1.0, x: [0, 0, 0], v: [0, 0, 0]}
+  - {name: b, m: 1.0e-3, primary: star, a: 0.5, e: 0.2, inc: 5.7, M: 30}
+  - {name: c, m: 3.0e-4, primary: star, a: 1.3, e: 0.05, inc: 17, Omega: 57, M: 200}
+forces:
+  - {force: gr, c: 100.0, source: SOURCE}
+"""
+
+
 def make_forces(n: int, rows: Iterable[tuple[int, int, Mapping[int, float], Any]]) -> ForceSet:
     """A ForceSet of ``(id, source, {param column: value}, per_body (3, n) or None)`` rows."""
     rows = list(rows)

@@ -288,6 +288,59 @@ def test_ctrl_c_is_one_line_exit_130_and_a_summary_of_what_really_finished(tmp_p
     assert not list((out / "runs").glob("*.tmp"))
 
 
+@pytest.mark.parametrize("target", ["driver", "group"])
+def test_sigterm_is_handled_like_ctrl_c(tmp_path, target):
+    # SIGTERM is what `timeout` sends (to the driver alone) and what Slurm sends (to every process of
+    # the job). It used to kill the driver outright: no summary, the killed runs' lock files left
+    # behind, and "There appear to be 12 leaked semaphore objects" on stderr (issue 27, item 11).
+    path = grid_sweep(tmp_path, 6, steps=10_000_000, every=1000)
+    out = tmp_path / "out"
+    command = [ORBITSIM, "batch", str(path), "-o", str(out), "--workers", "2", "--no-progress"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        wait_for(lambda: any((out / "runs").glob("*.h5")), 300, "the first finished run")
+        (os.killpg if target == "group" else os.kill)(proc.pid, signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+        wait_for(lambda: not process_group_alive(proc.pid), 30, "the workers to exit")
+    finally:
+        if process_group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
+        if proc.poll() is None:
+            proc.wait()
+    lines = err.splitlines()
+    assert proc.returncode == 143, err
+    assert len(lines) == 2 and lines[1].startswith("orbitsim: error: interrupted by SIGTERM; "), err
+    rows = read_csv(out / "summary.csv")
+    done = {p.stem for p in (out / "runs").glob("*.h5")}
+    assert {r["run_id"] for r in rows if r["status"] == "complete"} == done and 1 <= len(done) < 6
+    assert sorted(p.name for p in (out / "runs").iterdir()) == sorted(f"{d}.h5" for d in done)  # no .lock, .tmp
+
+
+def test_a_rerun_clears_the_locks_of_killed_runs_it_reuses(client, tmp_path):
+    # A run killed after its trace was renamed into place, but before it removed its lock, left a
+    # lock that no later sweep touched: the rerun reuses the finished trace (issue 27, item 11).
+    sweep = load_sweep(grid_sweep(tmp_path, 2))
+    out = tmp_path / "out"
+    assert run_sweep(sweep, out, client=client).counts["complete"] == 2
+    stale, live = (trace_path_for(out, case) for case in sweep.cases)
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    Path(f"{stale}.lock").write_text(f'{{"pid": {dead.stdout.strip()}, "host": "{os.uname().nodename}"}}\n')
+    Path(f"{stale}.tmp").write_bytes(b"half a trace")
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom orbitsim.io.lock import hold_output\n"
+                               f"with hold_output({str(live)!r}):\n    print('held', flush=True)\n    time.sleep(600)"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        outcome = run_sweep(sweep, out, client=client)
+        assert outcome.resumed == 2 and outcome.counts["complete"] == 2
+        assert not Path(f"{stale}.lock").exists() and not Path(f"{stale}.tmp").exists()
+        assert Path(f"{live}.lock").exists() and holder.poll() is None  # a live holder's lock is its own
+    finally:
+        holder.kill()
+        holder.wait()
+
+
 def test_an_interrupted_no_resume_sweep_does_not_report_old_traces_as_its_own(client, tmp_path):
     sweep = load_sweep(grid_sweep(tmp_path, 6, steps=3_000_000, every=1000))
     out = tmp_path / "out"
@@ -318,6 +371,19 @@ def test_workers_ignore_ctrl_c_even_after_a_restart(client):
              120, "the killed worker to be replaced")
     client.wait_for_workers(2, timeout=120)
     assert set(client.run(signal.getsignal, signal.SIGINT).values()) == {signal.SIG_IGN}
+
+
+def test_the_docs_way_of_loading_a_summary_runs(client, tmp_path, capsys):
+    # docs/batch.md used to suggest pandas, which orbitsim does not install (issue 27, item 8): its
+    # example now uses csv and h5py, and this runs it, as written, on a real sweep.
+    text = (Path(__file__).parents[1] / "docs" / "batch.md").read_text(encoding="utf-8")
+    block = text.split("<!-- docs-example: summary", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    out = tmp_path / "out"
+    run_sweep(load_sweep(grid_sweep(tmp_path, 2)), out, client=client)
+    assert 'Path("out/integrators_dt")' in block
+    exec(block.replace('Path("out/integrators_dt")', f"Path({str(out)!r})"), {})
+    printed = capsys.readouterr().out.splitlines()
+    assert len(printed) == 3 and printed[1].startswith("dt = 0.01: complete, max |dE/E| = "), printed
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="Linux only")

@@ -146,6 +146,27 @@ def test_interrupt_once_raises_on_the_first_ctrl_c_and_ignores_the_next_until_th
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+@pytest.mark.skipif(signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+                    or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL, reason="needs the default handlers")
+def test_interrupt_once_takes_sigterm_like_ctrl_c_and_says_which_it_was():
+    # SIGTERM (timeout, Slurm) used to kill the driver outright: no summary, stale locks (issue 27, item 11).
+    from orbitsim.batch.driver import SweepSignal
+
+    caught = []
+    with interrupt_once():
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(30)  # cut short by the SweepSignal
+        except SweepSignal as exc:
+            caught.append(exc.signum)
+        for later in (signal.SIGTERM, signal.SIGINT):  # while the sweep shuts down: ignored
+            os.kill(os.getpid(), later)
+        time.sleep(0.05)
+    assert caught == [signal.SIGTERM]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 class _WriteFailureError(OSError):
     """Shaped like orbitsim.io.schema's: ``str()`` is the whole message, ``strerror`` too."""
 

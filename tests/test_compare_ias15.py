@@ -83,7 +83,7 @@ def test_side_by_side_table_of_both_references(giants: tuple[Path, int, str]) ->
         assert ref["status"] == "complete" and ref["end_time"] == 200.0 and ref["epsilon"] == 1e-9
         assert ref["first_dt"] == 0.01 and ref["steps"] > 20 and ref["max_abs_energy_error"] < 1e-13
         assert ref["max_relative_position_difference"] < 1e-10
-        assert "jupiter: bound to sun" in ref["final_state"]
+        assert "jupiter: bound to sun" in ref["final_state"] and "sun: has jupiter" in ref["final_state"]
     for name in ("report.md", "report.html"):
         text = (giants[0] / name).read_text()
         assert "IAS15 references" in text and "--reference orbitsim" in text, name
@@ -131,6 +131,29 @@ def test_pythagorean_both_ias15_to_t70(tmp_path: Path, pythagorean: str) -> None
         assert ref["status"] == "complete" and ref["end_time"] == 70.0, ref
         assert ref["max_abs_energy_error"] < 1e-9, ref  # measured 5e-11 (REBOUND), 1.3e-10 (orbitsim)
         assert "m3: escaping" in ref["final_state"], ref
-        assert "m4: bound to m5" in ref["final_state"] and "m5: bound to m4" in ref["final_state"], ref
+        assert "m4: bound to m5" in ref["final_state"] and "m5: has m4 bound to it" in ref["final_state"], ref
     text = (tmp_path / "out" / "report.md").read_text()
     assert "NOT TESTABLE" in text and "chaotic: agreement not testable" in text and "m3: escaping" in text
+
+
+def test_a_star_is_not_described_as_bound_to_its_planet() -> None:
+    """The final state used to read ``star: bound to b``: the star's most bound partner is its
+    innermost planet (issue 27, item 8). The lighter body of a bound pair is bound to the heavier."""
+    from types import SimpleNamespace
+
+    from orbitsim.analysis.compare_ias15 import escape_summary
+
+    m = np.array([1.0, 1e-3, 1e-3, 1e-3, 1e-3, 1e-6])
+    a = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 50.0])
+    pos = np.zeros((6, 3))
+    vel = np.zeros((6, 3))
+    pos[:, 0] = a
+    vel[1:5, 1] = np.sqrt(1.0 / a[1:5])  # circular about the star
+    vel[5, 1] = 1.0  # far out and fast: escaping (v^2 / 2 = 0.5 > GM / r = 0.02)
+    vel[5, 0] = 0.5  # and receding
+    record = SimpleNamespace(n_samples=1, positions=pos[None], velocities=vel[None])
+    text = escape_summary(record, m, 1.0, ["star", "b", "c", "d", "e", "comet"])
+    parts = text.split("; ")
+    assert parts[0] == "star: has b, c, d and 1 more bound to it", text
+    assert parts[1:5] == ["b: bound to star", "c: bound to star", "d: bound to star", "e: bound to star"], text
+    assert parts[5].startswith("comet: escaping (r = "), text

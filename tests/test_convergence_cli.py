@@ -80,15 +80,15 @@ def test_bad_ladder_is_exit_2(tmp_path: Path) -> None:
 
 def test_fit_order_on_synthetic_ladders() -> None:
     dts = 0.01 / 2.0 ** np.arange(8)
-    order, used, note = fit_order(dts, 3.0 * dts**4)
-    assert order == pytest.approx(4.0) and used.sum() == 4 and note == ""
+    fit = fit_order(dts, 3.0 * dts**4)
+    assert fit.order == pytest.approx(4.0) and fit.used.sum() == 4 and fit.note == ""
     # With a round-off floor the stagnant points are dropped and the slope survives.
     errors = np.maximum(5.0 * dts**4, 1e-14 * (1 + 0.3 * np.arange(8)))
-    order, used, note = fit_order(dts, errors)
-    assert order == pytest.approx(4.0, abs=0.05) and "floor" in note and not used[-1]
-    # Above the 10 % ceiling nothing is asymptotic.
-    order, _, note = fit_order(dts[:3], np.array([0.9, 0.5, 0.3]))
-    assert math.isnan(order) and "fewer than" in note
+    fit = fit_order(dts, errors, steps=np.round(1.0 / dts))
+    assert fit.order == pytest.approx(4.0, abs=0.05) and "floor" in fit.note and not fit.used[-1]
+    # Above the 10 % ceiling nothing is asymptotic: dt is too coarse (not a round-off floor).
+    fit = fit_order(dts[:3], np.array([0.9, 0.5, 0.3]))
+    assert math.isnan(fit.order) and fit.note.startswith("dt above the asymptotic range")
 
 
 def test_ladder_defaults_and_validation() -> None:

@@ -172,3 +172,69 @@ def test_validate_names_the_angle_unit(tmp_path: Path) -> None:
 def test_unknown_angles_value() -> None:
     with pytest.raises(ScenarioError, match="angles: unknown value 'grad'"):
         scenario_from_dict(_doc(HALLEY, angles="grad"))
+
+
+# -- no anomaly: f = 0, REBOUND's rule (issue 27, item 15) ------------------------------------------------------
+
+@pytest.mark.parametrize("body", [
+    {"a": 1.3, "e": 0.2, "inc": 10, "Omega": 40, "omega": 70},
+    {"P": 2.0, "e": 0.0},
+    {"q": 0.5, "e": 1.0, "inc": 30},   # a parabola
+    {"a": -2.0, "e": 1.5, "pomega": 50},  # a hyperbola
+])
+def test_no_anomaly_means_f_zero(body: dict) -> None:
+    """Without M, f, l or theta the body starts at f = 0 (at pericentre), the same bits as writing f: 0."""
+    defaulted, explicit = _state(body), _state({**body, "f": 0})
+    for u, w in zip(defaulted, explicit, strict=True):
+        np.testing.assert_array_equal(u, w)
+
+
+def test_no_anomaly_matches_rebound() -> None:
+    """REBOUND's ``sim.add(primary=..., a=..., e=...)`` without an anomaly puts the body where orbitsim does."""
+    rebound = pytest.importorskip("rebound")
+    sim = rebound.Simulation()
+    sim.G = G
+    sim.add(m=1.0)
+    sim.add(m=1e-3, primary=sim.particles[0], a=1.3, e=0.2, inc=math.radians(10), Omega=math.radians(40),
+            omega=math.radians(70))
+    x, v = _state({"a": 1.3, "e": 0.2, "inc": 10, "Omega": 40, "omega": 70})
+    p = sim.particles[1]
+    # Two implementations of the same conversion (and degrees -> radians here): a few ulps of |x|, |v|.
+    np.testing.assert_allclose(x, [p.x, p.y, p.z], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(v, [p.vx, p.vy, p.vz], rtol=0, atol=1e-13)
+
+
+def test_validate_says_which_bodies_start_at_f_zero(tmp_path: Path) -> None:
+    import yaml
+
+    planets = [{"name": f"p{k}", "m": 0.0, "primary": "sun", "a": 1.0 + k} for k in range(7)]
+    path = tmp_path / "ok.yaml"
+    path.write_text(yaml.safe_dump(_doc(*planets, {**HALLEY, "primary": "sun"})))
+    result = CliRunner().invoke(cli, ["validate", str(path)])
+    assert result.exit_code == 0, result.output
+    notes = [line for line in result.output.splitlines() if "no anomaly" in line]
+    assert notes == ["  input: no anomaly (M, f, l or theta) for bodies[1] (p0), bodies[2] (p1), bodies[3] (p2), "
+                     "bodies[4] (p3), bodies[5] (p4) and 2 more: f = 0, at pericentre (REBOUND's default)"]
+    path.write_text(yaml.safe_dump(_doc(HALLEY)))  # every body gives its anomaly: no such line
+    result = CliRunner().invoke(cli, ["validate", str(path)])
+    assert result.exit_code == 0 and "no anomaly" not in result.output, result.output
+
+
+@pytest.mark.parametrize("inc", [30.0, 120.0, 162.26, 180.0])
+@pytest.mark.parametrize("longitudes", [{"pomega": 100.0, "l": 250.0}, {"pomega": 100.0, "theta": 250.0},
+                                        {"omega": 60.0, "l": 250.0}, {"pomega": -20.0, "M": 30.0}])
+def test_longitudes_follow_rebound_on_retrograde_orbits(inc: float, longitudes: dict) -> None:
+    """pomega, l and theta are measured along the motion: on a retrograde orbit (cos i < 0) REBOUND's
+    ``sim.add`` takes pomega = Omega - omega, l = Omega - omega - M, theta = Omega - omega - f."""
+    rebound = pytest.importorskip("rebound")
+    sim = rebound.Simulation()
+    sim.G = G
+    sim.add(m=1.0)
+    sim.add(m=1e-3, primary=sim.particles[0], a=1.3, e=0.4, inc=math.radians(inc), Omega=math.radians(40),
+            **{k: math.radians(v) for k, v in longitudes.items()})
+    x, v = _state({"a": 1.3, "e": 0.4, "inc": inc, "Omega": 40, **longitudes})
+    p = sim.particles[1]
+    # Two implementations of the same conversion (and degrees -> radians here): a few ulps of |x|, |v|,
+    # where a wrong sense of the longitudes moves the body by order 1.
+    np.testing.assert_allclose(x, [p.x, p.y, p.z], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(v, [p.vx, p.vy, p.vz], rtol=0, atol=1e-12)

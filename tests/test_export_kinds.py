@@ -152,19 +152,28 @@ def merged_trace(tmp_path: Path) -> Path:
 
 
 @pytest.mark.parametrize("fmt", ["scenario", "rebound"])
-def test_a_sample_after_a_merge_is_refused_in_one_line(tmp_path: Path, merged_trace: Path, fmt: str) -> None:
+def test_a_sample_after_a_merge_exports_the_merged_body(tmp_path: Path, merged_trace: Path, fmt: str) -> None:
+    """The end state after a merge: the one body left, with the summed mass and the grown radius, and
+    a line on stdout naming who merged into whom (test_export_merged.py has the rest)."""
     if fmt == "rebound":
         pytest.importorskip("rebound")
     out = tmp_path / "after.out"
-    first_after = MERGE_STEP // 100 + 1  # sample 23, step 2300: b is NaN from here on
-    for sample in (str(first_after), "-1"):
-        result = export(str(merged_trace), "--format", fmt, "--sample", sample, "-o", str(out))
-        index = first_after if sample != "-1" else 30
-        assert result.exit_code == 2
-        assert result.stdout == ""
-        assert result.stderr == (f"orbitsim: error: {merged_trace}: sample {index} has no finite state for 'b' "
-                                 "(merged, removed or diverged by then); export an earlier sample\n")
-        assert not out.exists() and no_temporary_files(tmp_path)
+    result = export(str(merged_trace), "--format", fmt, "--sample", "-1", "-o", str(out))
+    assert result.exit_code == 0, result.output
+    assert result.stdout == (f"{merged_trace}: 1 of 2 bodies left the run before sample 30 (t = 3): b merged into a "
+                             f"at t = 2.211 (step {MERGE_STEP}); exported the 1 still in it\n")
+    whole = read_trace(merged_trace)
+    radius = float(np.cbrt(0.05**3 + 0.05**3))  # the events driver's volume-conserving radius
+    if fmt == "scenario":
+        scenario = load_scenario(out)
+        assert scenario.names == ("a",) and list(scenario.masses) == [2.0] and list(scenario.radii) == [radius]
+        assert np.array_equal(scenario.positions, whole.positions[-1, :1])
+        assert f"before it b merged into a at t = 2.211 (step {MERGE_STEP})" in scenario.description
+    else:
+        sim, x, v, m = rebound_state(out, 1)
+        assert list(m) == [2.0] and [p.r for p in sim.particles] == [radius]
+        assert np.array_equal(x, whole.positions[-1, :1]) and np.array_equal(v, whole.velocities[-1, :1])
+    assert no_temporary_files(tmp_path)
 
 
 def test_a_sample_before_the_merge_continues_the_run_and_merges_again(tmp_path: Path, merged_trace: Path) -> None:

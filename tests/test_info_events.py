@@ -210,7 +210,7 @@ def test_info_shows_the_first_ten_events_then_how_many_more_and_the_elements(tmp
     assert all(re.match(r"  t = [0-9.]+ +encounter  star and planet: closest 0\.5", line) for line in listed), listed
     times = [float(line.split()[2]) for line in listed]
     assert times == sorted(times)
-    assert events[11] == "  ... 3 more (the trace's events table has them all)" and len(events) == 12
+    assert events[11] == f"  ... 3 more: orbitsim info {tmp_path / 'pericentres.h5'} --events" and len(events) == 12
     assert "elements: a, e, inc, Omega, omega, f, M, each (83, 2), primary star (orbitsim plot --elements)" in lines
 
 
@@ -247,3 +247,63 @@ def test_info_on_an_events_trace_imports_no_numba(tmp_path: Path, name: str) -> 
     """)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
+
+
+# -- info --events [KIND]: every event, or those of one kind ----------------------------------------
+
+def test_info_events_lists_every_event_not_the_first_ten(tmp_path: Path) -> None:
+    trace = run(tmp_path, PERICENTRES, "pericentres")
+    code, text = invoke("info", str(trace), "--events")
+    assert code == 0, text
+    lines = text.splitlines()
+    assert lines[0] == "events:   13 (encounter 13, collision 0, escape 0, unresolved 0, lost 0)"
+    assert len(lines) == 14
+    assert all(re.match(r"  t = [0-9.]+ +encounter +star and planet: closest 0\.5", line) for line in lines[1:])
+    assert lines[1:11] == section(info_lines(trace), "events:")[1:11]  # the same lines info shows first
+    times = [float(line.split()[2]) for line in lines[1:]]
+    assert times == sorted(times)
+
+
+def test_info_events_kind_lists_only_that_kind(tmp_path: Path) -> None:
+    trace = run(tmp_path, HEAD_ON.replace("RESOLVE", "merge"), "merge")
+    code, text = invoke("info", str(trace), "--events", "collision")
+    assert code == 0, text
+    lines = text.splitlines()
+    assert lines[0] == "events:   1 (encounter 0, collision 1, escape 0, unresolved 0, lost 0); 1 of kind collision:"
+    assert len(lines) == 2 and re.match(r"  t = 1\.8\d* +collision +left and right touch: .*; merged into left$",
+                                        lines[1]), lines
+    code, text = invoke("info", str(trace), "--events", "escape")
+    assert code == 0 and text.splitlines() == [
+        "events:   1 (encounter 0, collision 1, escape 0, unresolved 0, lost 0); 0 of kind escape:"]
+
+
+def test_info_events_reads_the_table_block_by_block(tmp_path: Path) -> None:
+    from orbitsim.analysis.trace_events import iter_events
+
+    trace = run(tmp_path, PERICENTRES, "pericentres")
+    with h5py.File(trace, "r") as f:
+        whole = list(iter_events(f))
+        assert len(whole) == 13
+        assert list(iter_events(f, block=4)) == whole  # 4 blocks, the last of 1 row
+        assert list(iter_events(f, "collision", block=4)) == []
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["--events"], "has no events table: the run had no events: section"),
+    (["--events", "bogus"], "--events: 'bogus' is not an event kind (all, encounter, collision, escape, unresolved, "
+                            "lost); give the trace first: orbitsim info TRACE --events [KIND]"),
+    (["--events", "--scenario"], "--scenario and --events print different things; give one"),
+])
+def test_info_events_errors_are_one_line(tmp_path: Path, args: list[str], words: str) -> None:
+    trace = run(tmp_path, TINY, "tiny")
+    code, text = invoke("info", str(trace), *args)
+    assert code == 2 and text.count("\n") == 1 and words in text, text
+    code, text = invoke("info", "--events", str(trace))  # the option before the trace takes it as KIND
+    assert code == 2 and text.count("\n") == 1 and "give the trace first" in text, text
+
+
+def test_the_cli_kinds_are_the_event_kinds() -> None:
+    from orbitsim.cli.info import EVENT_KIND_CHOICES
+    from orbitsim.events.log import EVENT_KINDS
+
+    assert EVENT_KIND_CHOICES == EVENT_KINDS

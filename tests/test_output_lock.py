@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from orbitsim.batch.task import run_case
-from orbitsim.io.lock import hold_output, lock_path
+from orbitsim.io.lock import clear_abandoned_lock, hold_output, lock_path
 from orbitsim.io.schema import OutputBusyError
 from orbitsim.runner import run_scenario
 from orbitsim.scenario import load_scenario
@@ -131,6 +131,20 @@ def test_a_killed_holder_blocks_nobody(folder: Path, held: subprocess.Popen[str]
     assert lock_path(folder / "out.h5").exists()
     assert orbitsim("run", "short.yaml", "-o", "out.h5", "--force", "-q", cwd=folder).returncode == 0
     assert not lock_path(folder / "out.h5").exists()
+
+
+def test_an_abandoned_lock_is_cleared_and_a_held_one_is_kept(folder: Path, held: subprocess.Popen[str]) -> None:
+    """What ``orbitsim batch`` does before a rerun and after its shutdown (issue 27, item 11)."""
+    out = folder / "out.h5"
+    tmp = Path(f"{out}.tmp")
+    tmp.write_bytes(b"half a trace")  # as if the holder were writing it
+    assert not clear_abandoned_lock(out)  # a live holder: nothing touched
+    assert lock_path(out).exists() and tmp.exists() and held.poll() is None
+    held.kill()  # SIGKILL: the lock file stays, unlocked, and the .tmp too
+    held.wait()
+    assert clear_abandoned_lock(out)
+    assert not lock_path(out).exists() and not tmp.exists() and out.exists()  # the finished trace stays
+    assert not clear_abandoned_lock(out)  # nothing left to clear
 
 
 def test_the_lock_is_reentrant_in_one_thread_and_exclusive_between_runs(tmp_path: Path) -> None:

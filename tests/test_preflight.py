@@ -140,6 +140,34 @@ def test_run_warns_before_a_long_run_and_only_then(tmp_path: Path, monkeypatch: 
     assert len(refused.stderr.splitlines()) == 1 and "already exists" in refused.stderr
 
 
+def test_a_run_of_few_but_slow_steps_is_timed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 27, item 9: one step of 50,000 bodies is 1.25e9 pair units, over 10 s on a slow, busy
+    machine; a run of one such step is below ESTIMATE_MIN_WORK, and still timed."""
+    monkeypatch.setattr(estimate, "_time_steps", lambda sim, sample_s: 1e-3)
+    monkeypatch.setattr(estimate, "_time_sample", lambda sim: 1e-4)
+    one_step = scenario_from_dict({"integrator": "verlet", "dt": 1e-3, "steps": 1, "softening": 0.01,
+                                   "generator": {"kind": "plummer", "n": 50_000, "seed": 1}})
+    assert estimate.rough_work(one_step) < estimate.ESTIMATE_MIN_WORK
+    assert estimate.estimate_time(one_step) is not None
+
+
+@pytest.mark.parametrize(("steps", "long"), [(100, False), (1000, True)])
+def test_run_says_in_one_line_when_each_step_takes_over_10_s(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                              steps: int, long: bool) -> None:
+    def slow(sc: object, **kwargs: object) -> estimate.TimeEstimate:
+        return estimate.TimeEstimate(n_bodies=2, n_timed=2, step_s=25.0, sample_s=0.0, steps=steps, samples=2)
+
+    monkeypatch.setattr(estimate, "estimate_time", slow)
+    path = write(tmp_path, BILLION.replace("1e9", "100"))
+    result = CliRunner().invoke(cli, ["run", str(path), "-o", str(tmp_path / "out.h5")])
+    assert result.exit_code == 0, result.output
+    lines = result.stderr.splitlines()
+    start = ("orbitsim: note: this run is expected to take a long time: about 25 s per step" if long else
+             "orbitsim: note: this run's steps are expected to be slow: about 25 s per step")
+    assert len(lines) == 1 and lines[0].startswith(start), lines
+    assert lines[0].endswith("; each step takes over 10 s: Ctrl-C stops within 2 s and discards the step in progress")
+
+
 def test_formats() -> None:
     assert [estimate.format_seconds(s) for s in (2.0, 11160.0, 869e-6, 59.0)] == ["2 s", "3.1 h", "870 us", "59 s"]
     assert [preflight.format_bytes(b) for b in (100, 1536, 3 * 2**40)] == ["100 B", "1.5 KiB", "3 TiB"]

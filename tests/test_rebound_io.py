@@ -7,7 +7,9 @@ with REBOUND's ``leapfrog`` run from the same file to 1e-12 relative in every po
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -130,3 +132,114 @@ def test_cli_runs_a_rebound_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     result = CliRunner().invoke(cli, ["run", "saba.bin", "--steps", "3", "-o", "saba.h5"])
     assert result.exit_code == 2 and "'saba' has no orbitsim counterpart" in result.output
     assert len(result.output.strip().splitlines()) == 1
+
+
+# -- unsynchronised snapshots (safe_mode = 0) ----------------------------------------------------
+
+#: The issue's archive: a star, a 1 au planet and an outer one in au, yr, M_sun, WHFast with
+#: safe_mode = 0 and corrector 11, a snapshot every 2 yr. dt = 0.04 yr: the owed half drift then
+#: moves the 1 au planet by ~0.13 au.
+G_YEAR = 4.0 * np.pi**2
+WH_DT = 0.04
+CONTINUATION_STEPS = 50
+#: orbitsim continues from REBOUND's synchronised state (corrector, then dt/2 and dt drifts) where
+#: REBOUND continues from its own coordinates (one merged dt drift): the two agree to round-off,
+#: measured 3e-14 au after 50 steps of corrector 11 (both codes are the same map); 1e-12 is the
+#: issue's bound.
+CONTINUATION_AGREEMENT = 1e-12
+
+
+def save_unsynchronised(path: Path, integrator: str = "whfast", **config: Any) -> None:
+    """A Simulationarchive of REBOUND's ``integrator`` with ``safe_mode = 0`` (where it has one):
+    snapshots every 2 yr to t = 7 yr, those at ~2, 4, 6 yr taken between steps, unsynchronised."""
+    sim = rebound.Simulation()
+    sim.G = G_YEAR
+    sim.add(m=1.0)
+    sim.add(m=1e-3, a=1.0, e=0.05)
+    sim.add(m=3e-4, a=1.9, e=0.1, inc=0.05)
+    sim.move_to_com()
+    sim.integrator = integrator
+    fields = {fd.name.decode() for fd in sim.integrator.callbacks.field_descriptor_list}
+    if "safe_mode" in fields:
+        sim.integrator.safe_mode = 0
+    for key, value in config.items():
+        setattr(sim.integrator, key, value)
+    sim.dt = WH_DT
+    sim.save_to_file(str(path), interval=2.0, delete_file=True)
+    sim.integrate(7.0, exact_finish_time=0)
+
+
+def archive_snapshot(path: Path, index: int) -> Any:
+    with warnings.catch_warnings():  # "The simulation might not be synchronized": that is the point
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return rebound.Simulationarchive(str(path))[index]
+
+
+def particle_state(sim: Any) -> tuple[np.ndarray, np.ndarray]:
+    x, v = np.zeros((sim.N, 3)), np.zeros((sim.N, 3))
+    sim.serialize_particle_data(xyz=x, vxvyvz=v)
+    return x, v
+
+
+def test_an_unsynchronised_whfast_snapshot_is_read_as_rebound_synchronises_it(tmp_path: Path) -> None:
+    save_unsynchronised(tmp_path / "wh.bin", corrector=11)
+    raw = archive_snapshot(tmp_path / "wh.bin", 1)
+    assert raw.is_synchronized == 0 and raw.integrator.safe_mode == 0  # the file is what the test is about
+    raw_x, _ = particle_state(raw)
+    synced = archive_snapshot(tmp_path / "wh.bin", 1)
+    synced.synchronize()
+    sync_x, sync_v = particle_state(synced)
+    assert np.linalg.norm(raw_x[1] - sync_x[1]) > 0.1  # what was read before: 0.13 au off
+
+    scenario = load_scenario(write_scenario(tmp_path, f"bodies: {{rebound: wh.bin, snapshot: 1}}\n"
+                                                      f"steps: {CONTINUATION_STEPS}\n"
+                                                      f"output: {{every: {CONTINUATION_STEPS}}}\n"))
+    assert np.array_equal(scenario.positions, sync_x) and np.array_equal(scenario.velocities, sync_v)
+    assert scenario.integrator_settings == {"coordinates": "jacobi", "corrector": 11}
+    assert scenario.t_start == raw.t
+
+    run_scenario(scenario, tmp_path / "wh.h5")
+    ours = read_trace(tmp_path / "wh.h5").positions[-1]
+    theirs_sim = archive_snapshot(tmp_path / "wh.bin", 1)  # REBOUND goes on from its own coordinates...
+    theirs_sim.steps(CONTINUATION_STEPS)
+    theirs_sim.synchronize()  # ...and reports the synchronised state
+    theirs, _ = particle_state(theirs_sim)
+    assert np.max(np.abs(ours - theirs)) < CONTINUATION_AGREEMENT
+
+
+@pytest.mark.parametrize(("integrator", "config"), [
+    ("whfast", {"coordinates": "democraticheliocentric"}),
+    ("whfast", {"keep_unsynchronized": 1}),  # is_synchronized stays 0 after synchronize() unless cleared
+    ("saba", {}),
+    ("mercurius", {}),
+    ("eos", {}),
+    ("trace", {}),  # REBOUND 5.2.2's TRACE has no safe_mode: always synchronised, read as saved
+    ("leapfrog", {}),
+])
+def test_every_snapshot_is_read_as_rebound_synchronises_it(tmp_path: Path, integrator: str,
+                                                           config: dict[str, Any]) -> None:
+    save_unsynchronised(tmp_path / "sim.bin", integrator, **config)
+    synced = archive_snapshot(tmp_path / "sim.bin", 2)
+    if "keep_unsynchronized" in config:
+        synced.integrator.keep_unsynchronized = 0  # REBOUND's synchronize() then updates the particles for good
+    synced.synchronize()
+    x, v = particle_state(synced)
+    text = "bodies: {rebound: sim.bin, snapshot: 2}\nsteps: 1\n"
+    if integrator in ("saba", "mercurius", "eos"):  # no orbitsim counterpart: the scenario names one
+        text += "integrator: leapfrog\n"
+    scenario = load_scenario(write_scenario(tmp_path, text))
+    assert np.array_equal(scenario.positions, x) and np.array_equal(scenario.velocities, v)
+
+
+def test_a_snapshot_rebound_cannot_synchronise_is_refused_in_one_line(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    save_unsynchronised(tmp_path / "wh.bin", corrector=11)
+    monkeypatch.setattr(rebound.Simulation, "synchronize", lambda self: None)  # a REBOUND that leaves it so
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(write_scenario(tmp_path, "bodies: {rebound: wh.bin, snapshot: 1}\nsteps: 1\n"))
+    assert info.value.key == "bodies.snapshot" and "\n" not in str(info.value)
+    assert "wh.bin: snapshot 1 was saved unsynchronised (REBOUND whfast with safe_mode = 0)" in str(info.value)
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(cli, ["run", "wh.bin", "--steps", "3", "-o", "wh.h5"])
+    assert result.exit_code == 2 and "saved unsynchronised (REBOUND whfast with safe_mode = 0)" in result.output
+    assert len(result.output.strip().splitlines()) == 1 and not Path("wh.h5").exists()

@@ -152,6 +152,88 @@ def test_non_string_name_is_an_unknown_integrator() -> None:
         get_module(None)  # type: ignore[arg-type]
 
 
+# -- REBOUND's names and the nearest name (issue 27, item 14) --------------------------------------------------
+
+@pytest.mark.parametrize(("bad", "nearest"), [("leapfrg", "leapfrog"), ("rk45", "rk4"), ("ias16", "ias15"),
+                                              ("wisdom-holmann", "wisdom_holman"), ("trac", "trace"),
+                                              ("verlett", "verlet"), ("whfats", "whfast")])
+def test_an_unknown_name_suggests_the_nearest_one(bad: str, nearest: str) -> None:
+    with pytest.raises(UnknownIntegratorError, match=f"^unknown integrator {bad!r}; did you mean {nearest!r}\\?"):
+        get_module(bad)
+
+
+@pytest.mark.parametrize("name", ["whfast", "WHFast", " whfast "])
+def test_whfast_is_wisdom_holman(name: str) -> None:
+    assert get_spec(name).name == "wisdom_holman" and canonical_name(name) == "wisdom_holman"
+
+
+def _two_bodies(integrator: object) -> dict:
+    return {"integrator": integrator, "dt": 0.01, "steps": 5,
+            "bodies": [{"name": "a", "m": 1.0, "x": [0, 0, 0], "v": [0, 0, 0]},
+                       {"name": "b", "m": 1e-3, "x": [1, 0, 0], "v": [0, 1, 0]}]}
+
+
+@pytest.mark.parametrize(("rebound", "orbitsim"), [
+    ("whfast", "wisdom_holman"),
+    ({"name": "whfast", "corrector": 5}, {"name": "wisdom_holman", "corrector": 5}),
+    ({"name": "leapfrog", "order": 2}, "leapfrog"),
+    ({"name": "leapfrog", "order": 4}, "leapfrog4"),
+    ({"name": "leapfrog", "order": 6}, "leapfrog6"),
+    ({"name": "leapfrog", "order": 8}, "leapfrog8"),
+])
+def test_rebound_names_in_a_scenario_run_the_same_bits_and_say_so(rebound: object, orbitsim: object) -> None:
+    """A REBOUND name resolves to the very scenario (same text, same SHA-256) its orbitsim name gives, and
+    the loader records a note that ``orbitsim validate`` prints."""
+    from orbitsim.scenario import scenario_from_dict
+
+    ported, native = scenario_from_dict(_two_bodies(rebound)), scenario_from_dict(_two_bodies(orbitsim))
+    assert ported.to_yaml() == native.to_yaml() and ported.integrator == native.integrator
+    assert any("REBOUND's" in note and native.integrator in note for note in ported.input_notes)
+    assert not any("REBOUND" in note for note in native.input_notes)
+
+
+@pytest.mark.parametrize("name", ["ias15", "trace"])
+def test_ias15_and_trace_are_the_same_names_with_the_same_settings(name: str) -> None:
+    """REBOUND's ias15 (epsilon, min_dt) and trace (r_crit_hill, peri_crit_eta, peri_mode) settings are
+    orbitsim's: the keys a REBOUND script sets are accepted as they are."""
+    from orbitsim.integrators.rebound_names import CLOSEST, SAME_SCHEME
+
+    rebound_keys = {"ias15": {"epsilon", "min_dt"}, "trace": {"r_crit_hill", "peri_crit_eta", "peri_mode"}}[name]
+    assert get_spec(name).name == name and name not in SAME_SCHEME and name not in CLOSEST
+    assert rebound_keys <= set(get_module(name).SETTINGS)
+
+
+def test_rebound_schemes_orbitsim_lacks_name_the_closest_one() -> None:
+    """Every REBOUND scheme without a counterpart is refused in one line that names an orbitsim scheme to use
+    (except the shearing sheet's and 'none', which have none)."""
+    from orbitsim.integrators.rebound_names import CLOSEST
+
+    for rebound_name in [*CLOSEST, "saba1", "SABA(10,6,4)", "sabacm"]:
+        with pytest.raises(UnknownIntegratorError) as info:
+            get_module(rebound_name)
+        message = str(info.value)
+        assert "\n" not in message and "REBOUND's" in message, message
+        if rebound_name not in ("sei", "none"):
+            suggested = message.split("is not in orbitsim; ", 1)[1]
+            assert any(name in suggested for name in MODULE_NAMES), message
+
+
+def test_the_rebound_names_are_rebounds() -> None:
+    """Each name the table maps or refuses is one REBOUND itself accepts (a typo there would map nothing)."""
+    rebound = pytest.importorskip("rebound")
+    from orbitsim.integrators.rebound_names import CLOSEST, LEAPFROG_ORDERS, SAME_SCHEME
+
+    sim = rebound.Simulation()
+    for name in [*SAME_SCHEME, *CLOSEST, "leapfrog", "ias15", "trace"]:
+        sim.integrator = name  # raises for a name REBOUND does not know
+    with pytest.raises(Exception, match="not found"):  # the check above can fail
+        sim.integrator = "whfest"
+    sim.integrator = "leapfrog"
+    for order in LEAPFROG_ORDERS:
+        sim.integrator.order = order  # REBOUND 5's leapfrog order setting (orbitsim.io.rebound_file reads it)
+        assert int(sim.integrator.order) == order
+
+
 @pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
 def test_declared_order_matches_the_issue_table(spec: IntegratorSpec) -> None:
     if spec.name in DECLARED_ORDERS:

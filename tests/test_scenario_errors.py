@@ -78,6 +78,58 @@ CASES = [
     ("not_a_mapping", "- 1\n- 2\n", None, "expected a scenario of keys and values"),
     ("empty_file", "", None, "the scenario is empty"),
     ("bad_name", "name: ../evil\n" + HEAD + BODIES, "name", "plain file name"),
+    # Times with a unit (issue 27, item 13): every time key names itself.
+    ("dt_length_unit", "units: si\nintegrator: verlet\ndt: 1 km\nsteps: 10\n" + BODIES, "dt",
+     "'km' is a length, not a time"),
+    ("dt_unit_in_nbody", "integrator: verlet\ndt: 1 day\nsteps: 10\n" + BODIES, "dt", "no physical scale"),
+    ("dt_unit_own_g", "units: si\nG: 1\nintegrator: verlet\ndt: 1 day\nsteps: 10\n" + BODIES, "dt",
+     "sets its own G"),
+    ("t_end_unknown_unit", "units: si\nintegrator: verlet\ndt: 1 h\nt_end: 3 fortnights\n" + BODIES, "t_end",
+     "unknown unit"),
+    ("t_end_unit_too_short", "units: si\nintegrator: verlet\ndt: 1 day\nt_end: 1 h\n" + BODIES, "t_end",
+     "shorter than one step"),
+    ("t_start_not_a_time", "units: si\nintegrator: verlet\ndt: 1 h\nsteps: 10\nt_start: 1 Msun\n" + BODIES,
+     "t_start", "'msun' is a mass, not a time"),
+    ("interval_negative_unit", "units: si\n" + HEAD + "output: {interval: -1 day}\n" + BODIES, "output.interval",
+     "must be > 0"),
+    ("interval_bad_text", "units: si\n" + HEAD + "output: {interval: soon}\n" + BODIES, "output.interval",
+     'such as "10 yr" or "1 day"'),
+    ("checkpoint_every_shorter_than_a_step", "units: si\nintegrator: verlet\ndt: 1 day\nsteps: 10\n"
+     "output: {checkpoint: {every: 1 h}}\n" + BODIES, "output.checkpoint.every", "shorter than one step"),
+    ("checkpoint_every_mass", "units: si\n" + HEAD + "output: {checkpoint: {every: 2 kg}}\n" + BODIES,
+     "output.checkpoint.every", "'kg' is a mass, not a time"),
+    ("checkpoint_seconds_length", HEAD + "output: {checkpoint: {seconds: 10 km}}\n" + BODIES,
+     "output.checkpoint.seconds", "'km' is a length, not a time"),
+    ("checkpoint_seconds_negative", HEAD + "output: {checkpoint: {seconds: -2 min}}\n" + BODIES,
+     "output.checkpoint.seconds", "must be > 0"),
+    # Integrator names (item 14): the nearest name, REBOUND's names.
+    ("misspelt_integrator", "integrator: leapfrg\ndt: 0.01\nsteps: 10\n" + BODIES, "integrator",
+     "did you mean 'leapfrog'?"),
+    ("rebound_mercurius", "integrator: mercurius\ndt: 0.01\nsteps: 10\n" + BODIES, "integrator",
+     "REBOUND's mercurius is not in orbitsim; the closest is trace"),
+    ("rebound_saba", "integrator: SABA4\ndt: 0.01\nsteps: 10\n" + BODIES, "integrator",
+     "the closest is wisdom_holman"),
+    ("rebound_leapfrog_order", "integrator: {name: leapfrog, order: 3}\ndt: 0.01\nsteps: 10\n" + BODIES,
+     "integrator.order", "must be one of 2, 4, 6, 8"),
+    # A disc of planetesimals (item 16).
+    ("disc_m_min_alone", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, m_min: 1e-6}\n",
+     "generator.m_max", "give both m_min and m_max"),
+    ("disc_m_min_above_m_max", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, m_min: 2e-6, "
+     "m_max: 1e-6, mass_index: -2}\n", "generator.m_max", "must be >= m_min"),
+    ("disc_mass_zero", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, m_min: 0, m_max: 1e-6, "
+     "mass_index: -2}\n", "generator.m_min", "must be > 0"),
+    ("disc_no_mass_index", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, m_min: 1e-9, "
+     "m_max: 1e-6}\n", "generator.mass_index", "needs the power-law index"),
+    ("disc_mass_index_text", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, m_min: 1e-9, "
+     "m_max: 1e-6, mass_index: steep}\n", "generator.mass_index", "expected a number"),
+    ("disc_density_without_masses", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, "
+     "density: 1}\n", "generator.density", "give m_min and m_max too"),
+    ("disc_density_not_cubed", "units: au-yr-msun\n" + HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, "
+     "r_max: 2, m_min: 1e-9, m_max: 1e-9, density: 2 g/cm2}\n", "generator.density", "a mass over a length cubed"),
+    ("disc_density_negative", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, m_min: 1e-9, "
+     "m_max: 1e-9, density: -3}\n", "generator.density", "must be > 0"),
+    ("disc_star_r_negative", HEAD + "generator: {kind: disc, n: 5, seed: 1, r_min: 1, r_max: 2, star_r: -1}\n",
+     "generator.star_r", "must be >= 0"),
 ]
 IDS = [case[0] for case in CASES]
 

@@ -57,6 +57,12 @@ def test_every_unit_name_matches_astropy(name: str, units: str) -> None:
     ("30 km/s", "speed", "si", 3.0e4),
     ("30 KM/S", "speed", "au-day-msun", 30e3 * 86400 / 149597870700.0),
     ("1 au/yr", "speed", "au-yr-msun", GAUSSIAN_YEAR_DAYS / 365.25),  # astropy's yr is Julian
+    ("2 g/cm3", "density", "si", 2000.0),  # a disc's density (issue 27, item 16): a mass over a length cubed
+    ("2 G/CM^3", "density", "si", 2000.0),
+    ("2000 kg/m**3", "density", "si", 2000.0),
+    ("3 g/cm3", "density", "au-yr-msun", (3.0 * u.g / u.cm**3).to_value(u.M_sun / u.au**3)),
+    ("10 min", "time", "si", 600.0),
+    ("1 day", "time", "au-yr-msun", 1.0 / GAUSSIAN_YEAR_DAYS),
 ])
 def test_strings_convert_into_the_scenario_units(text: str, kind: str, units: str, expected: float) -> None:
     assert QuantityReader(units).number(text, "k", kind) == pytest.approx(expected, rel=1e-15)
@@ -116,3 +122,107 @@ def test_angle_strings_and_radians() -> None:
     for s in (rad, text):  # pi/2 -> 90 deg -> pi/2 again: at most an ulp or two apart
         assert s.velocities[1] == pytest.approx(deg.velocities[1], abs=1e-14)
     assert abs(deg.velocities[1, 1]) < 1e-14  # inc = 90 deg: the orbit is in the x-z plane
+
+
+
+# -- times with a unit: dt, t_start, t_end, output.interval, output.checkpoint (issue 27, item 13) -------------
+
+_STAR_AND_PLANET = [{"name": "sun", "m": 1.0, "x": [0, 0, 0], "v": [0, 0, 0]},
+                    {"name": "b", "m": 1e-3, "primary": "sun", "P": "12 yr", "M": 0}]
+
+
+def _timed(units: str = "au-yr-msun", integrator: object = "verlet", **top: object) -> dict:
+    return {"units": units, "integrator": integrator, **top, "bodies": _STAR_AND_PLANET}
+
+
+def test_every_time_key_takes_the_unit_strings_p_takes() -> None:
+    s = scenario_from_dict(_timed(dt="1 day", t_end="1000 yr",
+                                  output={"interval": "10 yr", "checkpoint": {"every": "100 yr", "seconds": "10 min"}}))
+    year = QuantityReader("au-yr-msun").number("1 yr", "P", "time")  # the factor that P: "12 yr" uses
+    assert year == pytest.approx(365.25 / GAUSSIAN_YEAR_DAYS, rel=1e-15)
+    assert s.dt == pytest.approx(1.0 / GAUSSIAN_YEAR_DAYS, rel=1e-15)  # one day, in Gaussian years
+    assert s.t_end == 1000.0 * year and s.interval == 10.0 * year
+    assert s.steps == 365250  # 1000 Julian years of whole days (t_end / dt is whole up to round-off)
+    assert s.checkpoint_every == 36525 and s.checkpoint_seconds == 600.0  # 100 yr of days; 10 min of wall time
+    assert s.sample_steps()[:3].tolist() == [0, 3652, 7305]  # the last whole day not past 10 yr, 20 yr
+
+
+def test_t_start_and_si_and_adaptive_times() -> None:
+    started = scenario_from_dict(_timed(dt="1 day", t_start="1 yr", t_end="3 yr"))
+    assert started.t_start == QuantityReader("au-yr-msun").number("1 yr", "k", "time")
+    assert started.steps == 730  # 2 Julian years of days, 730.5: the whole steps that fit
+    si = scenario_from_dict(_timed(units="si", dt="1 h", t_end="2 day"))
+    assert (si.dt, si.t_end, si.steps) == (3600.0, 172800.0, 48)
+    adaptive = scenario_from_dict(_timed(integrator="ias15", dt="1 day", t_end="10 yr", output={"interval": "1 yr"}))
+    assert adaptive.steps == 10 and adaptive.interval == pytest.approx(365.25 / GAUSSIAN_YEAR_DAYS, rel=1e-15)
+    hourly = scenario_from_dict(_timed(integrator="ias15", dt="1 day", t_end="10 yr",
+                                       output={"interval": "1 yr", "checkpoint": {"every": "2 yr"}}))
+    assert hourly.checkpoint_every == 2  # an adaptive run's grid is its output intervals
+
+
+def test_numeric_times_keep_their_bits() -> None:
+    s = scenario_from_dict(_timed(dt=0.1 + 0.2, t_end=30, output={"interval": 1.1 + 2.2}))
+    assert s.dt == 0.1 + 0.2 and s.interval == 1.1 + 2.2 and s.t_end == 30.0
+
+
+def test_times_with_units_through_with_overrides() -> None:
+    s = scenario_from_dict(_timed(units="au-day-msun", dt=1.0, t_end=10.0))
+    longer = s.with_overrides(dt="12 h", t_end="2 yr")
+    assert (longer.dt, longer.t_end, longer.steps) == (0.5, 730.5, 1461)
+    with pytest.raises(ScenarioError, match=r"^<inline>: output.interval: 'kg' is a mass, not a time"):
+        s.with_overrides(interval="1 kg")
+
+
+_DAY_SCENARIO = """\
+name: days
+units: au-day-msun
+integrator: verlet
+dt: 1.0
+steps: 10
+bodies:
+  - {name: sun, m: 1.0, x: [0, 0, 0], v: [0, 0, 0]}
+  - {name: b, m: 1.0e-3, primary: sun, a: 1.0, M: 0}
+"""
+
+
+def _cli(*args: str) -> tuple[int, list[str]]:
+    from click.testing import CliRunner
+
+    from orbitsim.cli.main import cli
+
+    result = CliRunner().invoke(cli, list(args))
+    assert "Traceback" not in result.output, result.output
+    return result.exit_code, [line for line in result.output.splitlines() if line.strip()]
+
+
+def test_run_takes_times_with_units_on_the_command_line(tmp_path) -> None:
+    import h5py
+
+    path = tmp_path / "days.yaml"
+    path.write_text(_DAY_SCENARIO, encoding="utf-8")
+    out = tmp_path / "out.h5"
+    code, lines = _cli("run", str(path), "-o", str(out), "--dt", "12 h", "--t-end", "10 day", "--interval", "2 day",
+                       "-q")
+    assert code == 0, lines
+    with h5py.File(out, "r") as f:
+        times = f["time"][()]
+    assert times[-1] == 10.0 and times[1] - times[0] == 2.0  # 20 steps of half a day, sampled every 2 days
+    code, lines = _cli("run", "--from", str(out), "--t-end", "0.5 yr", "-q")
+    assert code == 0, lines
+    with h5py.File(out, "r") as f:
+        assert f["time"][-1] == 182.5  # half a Julian year of days, a whole number of half-day steps
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["run", "two_body_circular", "--dt", "1 day"], "--dt 1 day: units: nbody has no physical scale"),
+    (["run", "two_body_circular", "--t-end", "1 furlong"], "--t-end 1 furlong: unknown unit"),
+    (["run", "two_body_circular", "--interval", "2 kg"], "--interval 2 kg: 'kg' is a mass, not a time"),
+    (["run", "two_body_circular", "--dt", "-1 day"], "--dt -1 day: must be a finite time > 0"),
+    (["compare", "two_body_circular", "-o", "OUT", "--t-end", "1 yr"], "t_end: units: nbody has no physical scale"),
+    (["convergence", "two_body_circular", "-o", "OUT", "--t-end", "1 yr"], "--t-end 1 yr: units: nbody has no"),
+])
+def test_bad_times_on_the_command_line_are_one_line(tmp_path, monkeypatch, args: list[str], words: str) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, lines = _cli(*args)
+    assert code == 2 and len(lines) == 1 and words in lines[0], lines
+    assert list(tmp_path.iterdir()) == []  # nothing written: no trace, no output directory

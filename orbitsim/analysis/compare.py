@@ -8,9 +8,14 @@ and the one chosen with ``reference`` is the reference. For an adaptive scenario
 ias15``) the samples are its output grid and fixed-dt schemes step by its ``dt`` to the step on
 each output time. See ``docs/compare.md`` for the metrics and tolerances.
 
+Both codes integrate the scenario's ``forces:``: REBOUND through REBOUNDx, arranged as orbitsim
+applies each force (:mod:`orbitsim.reference.force_pairing`). A pair one of whose codes cannot
+apply a force as the other does is not run against the other: its verdict is "not comparable",
+with the reason (:func:`~orbitsim.analysis.metrics.not_comparable_verdict`).
+
 The scenario is used through these attributes only: ``name``, ``G``, ``softening``, ``dt``,
 ``integrator``, ``integrator_settings``, ``masses``, ``positions``, ``velocities``, ``names``,
-``sample_steps()`` and, for an adaptive one, ``adaptive``, ``grid_dt`` and ``t_end``.
+``forces``, ``sample_steps()`` and, for an adaptive one, ``adaptive``, ``grid_dt`` and ``t_end``.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from orbitsim.analysis.metrics import (
     DISAGREE,
     PairVerdict,
     RunMetrics,
+    not_comparable_verdict,
     pair_verdict,
     reference_problem,
     run_metrics,
@@ -68,7 +74,7 @@ def _registered(name: str) -> bool:
     return True
 
 
-def default_integrators(scenario: Any) -> list[str]:
+def default_candidates(scenario: Any) -> list[str]:
     """The scenario's integrator, :data:`DEFAULT_MATCHED`, and ``wisdom_holman`` (if registered)
     when body 0 dominates the mass; for an adaptive scenario only its own integrator (its ``dt`` is
     a first trial step, not a step a fixed-dt scheme was chosen for)."""
@@ -80,6 +86,31 @@ def default_integrators(scenario: Any) -> list[str]:
     if has_dominant_central_mass(scenario.masses) and _registered("wisdom_holman"):
         names.append("wisdom_holman")
     return list(dict.fromkeys(names))
+
+
+def default_integrators(scenario: Any) -> list[str]:
+    """:func:`default_candidates` less those that cannot apply the scenario's forces
+    (:func:`defaults_left_out`)."""
+    names = default_candidates(scenario)
+    left_out = {name for name, _ in defaults_left_out(scenario, names)}
+    return [n for n in names if n not in left_out]
+
+
+def defaults_left_out(scenario: Any, names: Sequence[str]) -> list[tuple[str, str]]:
+    """``(name, why)`` for each of ``names`` (other than the scenario's own integrator) that cannot
+    apply the scenario's forces."""
+    from orbitsim.integrators.registry import canonical_name
+    from orbitsim.reference.force_pairing import orbitsim_refusal
+    from orbitsim.scenario_simulation import scenario_forces
+
+    forces = scenario_forces(scenario)
+    own = canonical_name(scenario.integrator)
+    out = []
+    for name in dict.fromkeys(names):
+        why = orbitsim_refusal(forces, name, settings_for(scenario, name)) if name != own else None
+        if why:
+            out.append((name, why))
+    return out
 
 
 def default_rebound(integrators: Sequence[str], masses: np.ndarray, *, whfast: bool = True) -> list[ReboundScheme]:
@@ -163,19 +194,23 @@ def run_orbitsim(scenario: Any, integrator: str, sample_steps: np.ndarray, *, dt
     the run's own, comparable with REBOUND's, and not Numba's start-up.
     """
     from orbitsim.integrators.registry import get_spec
+    from orbitsim.reference.force_pairing import orbitsim_force_lines
     from orbitsim.scenario_simulation import scenario_forces
     from orbitsim.simulation import simulate
 
     spec = get_spec(integrator)
     step_dt = float(scenario.dt if dt is None else dt)
+    forces = scenario_forces(scenario)
     common = dict(integrator=spec.name, dt=step_dt, G=scenario.G, softening=scenario.softening,
-                  threads=threads, settings=settings_for(scenario, spec.name), forces=scenario_forces(scenario))
+                  threads=threads, settings=settings_for(scenario, spec.name), forces=forces)
     simulate(scenario.masses, scenario.positions, scenario.velocities, steps=1, record_positions=False,
              **common)
     result = simulate(scenario.masses, scenario.positions, scenario.velocities,
                       steps=int(sample_steps[-1]), sample_steps=sample_steps, record_positions=True,
                       **common)
-    return record_from_result(result, key=spec.name, display=f"orbitsim {spec.name}", order=spec.order)
+    record = record_from_result(result, key=spec.name, display=f"orbitsim {spec.name}", order=spec.order)
+    record.forces = orbitsim_force_lines(forces, spec.name)
+    return record
 
 
 def _pairs_for(integrators: Sequence[str], schemes: Sequence[ReboundScheme],
@@ -186,7 +221,8 @@ def _pairs_for(integrators: Sequence[str], schemes: Sequence[ReboundScheme],
 
 def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[ReboundScheme | str],
                 extra_pairs: Sequence[MatchedPair] = (), threads: int | None = None,
-                progress: Progress | None = None, reference: str = "rebound") -> CompareResult:
+                progress: Progress | None = None, reference: str = "rebound",
+                notes: Sequence[str] = ()) -> CompareResult:
     """Run ``scenario`` under each integrator of both codes and both IAS15s.
 
     Parameters
@@ -204,7 +240,10 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
     progress : callable, optional
         Receives one line per finished run.
     reference : str
-        ``"rebound"`` or ``"orbitsim"``: whose IAS15 every run is measured against.
+        ``"rebound"`` or ``"orbitsim"``: whose IAS15 every run is measured against (orbitsim's
+        when REBOUND cannot carry the scenario's forces; a note says so).
+    notes : sequence of str
+        The caller's notes for the report (e.g. default integrators left out).
 
     Raises
     ------
@@ -220,10 +259,13 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
         REFERENCE_CHOICES,
         fixed_step_plan,
         output_grid,
+        rebound_ias15_refusal,
         rebound_ias15_twin,
         run_ias15_references,
     )
     from orbitsim.integrators.registry import canonical_name
+    from orbitsim.reference.force_pairing import orbitsim_refusal, rebound_refusal
+    from orbitsim.scenario_simulation import scenario_forces
 
     if reference not in REFERENCE_CHOICES:
         raise ValueError(f"reference must be one of {', '.join(REFERENCE_CHOICES)}, got {reference!r}")
@@ -237,23 +279,46 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
     adaptive = bool(getattr(scenario, "adaptive", False))
     fixed = fixed_step_plan(scenario, times) if adaptive and (names or schemes) else plan
     pairs = _pairs_for(names, schemes, extra_pairs)
-    runs = [_announce(run_orbitsim(scenario, name, fixed, threads=threads), say) for name in names]
-    runs += [_announce(_run_rebound(scenario, s, fixed, names), say) for s in schemes]
+    # What each side cannot apply of the scenario's forces: such runs are not made, and their pairs
+    # are "not comparable" rather than judged.
+    forces = scenario_forces(scenario)
+    cannot = {f"orbitsim/{n}": orbitsim_refusal(forces, n, settings_for(scenario, n)) for n in names}
+    cannot.update({f"rebound/{s.key}": rebound_refusal(forces, s, _whfast_settings(scenario, s)) for s in schemes})
+    runs = [_announce(run_orbitsim(scenario, name, fixed, threads=threads), say) for name in names
+            if not cannot[f"orbitsim/{name}"]]
+    runs += [_announce(_run_rebound(scenario, s, fixed, names), say) for s in schemes
+             if not cannot[f"rebound/{s.key}"]]
     references = {k: _announce(r, say) for k, r in run_ias15_references(scenario, threads).items()}
+    ias15_why = rebound_ias15_refusal(scenario)
+    notes = list(notes)
+    if ias15_why:
+        notes.append(f"REBOUND's IAS15 was not run: {ias15_why}" + (
+            "; orbitsim's ias15 is the reference instead" if reference == "rebound" else ""))
+        reference = "orbitsim"
     chosen = references[reference]
     ref_problem = reference_problem(chosen)
+
+    def why_not(pair: MatchedPair) -> str | None:
+        return cannot[f"orbitsim/{pair.orbitsim}"] or cannot[f"rebound/{pair.rebound.key}"]
+
     twins = {s.key: _run_rebound(scenario, s, fixed, names, twin=True)
-             for s in dict.fromkeys(p.rebound for p in pairs)}
+             for s in dict.fromkeys(p.rebound for p in pairs if not why_not(p))}
     by_label = {r.label: r for r in runs}
-    verdicts = [pair_verdict(p, by_label[f"orbitsim/{p.orbitsim}"], by_label[f"rebound/{p.rebound.key}"],
+    verdicts = [not_comparable_verdict(p, why) if (why := why_not(p)) else
+                pair_verdict(p, by_label[f"orbitsim/{p.orbitsim}"], by_label[f"rebound/{p.rebound.key}"],
                              twins.get(p.rebound.key), ref_problem=ref_problem) for p in pairs]
-    if with_ias15:
+    if with_ias15 and ias15_why:
+        verdicts.insert(0, not_comparable_verdict(IAS15_PAIR, ias15_why))
+    elif with_ias15:
         twins[IAS15_PAIR.rebound.key] = rebound_ias15_twin(scenario, TWIN_PERTURBATION)
         verdicts.insert(0, pair_verdict(IAS15_PAIR, references["orbitsim"], references["rebound"],
                                         twins[IAS15_PAIR.rebound.key], ref_problem=ref_problem))
     records = [*runs, *references.values()]
     metrics = {r.label: run_metrics(r, chosen) for r in records}
-    notes = _skipped_notes(names, schemes)
+    notes += _skipped_notes(names, schemes)
+    paired = {f"orbitsim/{p.orbitsim}" for p in pairs} | {f"rebound/{p.rebound.key}" for p in pairs}
+    shown = {**{f"orbitsim/{n}": f"orbitsim {n}" for n in names}, **{f"rebound/{s.key}": s.display for s in schemes}}
+    notes += [f"{shown[label]} was not run: {why}" for label, why in cannot.items() if why and label not in paired]
     if adaptive and (names or schemes):
         notes.append(f"fixed-dt integrators step by the scenario's dt = {float(scenario.dt):g} (ias15's first trial "
                      f"step): {int(fixed[-1])} steps, sampled at the step on each output time "
@@ -261,21 +326,27 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
     return CompareResult(scenario, runs, chosen, twins, metrics, verdicts, notes, ref_problem, references, reference)
 
 
+def _whfast_settings(scenario: Any, scheme: ReboundScheme) -> dict[str, Any]:
+    """WHFast gets the settings of the orbitsim scheme it is paired with, so both use the same
+    coordinates and corrector; other schemes get none."""
+    if scheme.name == "whfast" and _registered("wisdom_holman"):
+        return settings_for(scenario, "wisdom_holman")
+    return {}
+
+
 def _run_rebound(scenario: Any, scheme: ReboundScheme, plan: np.ndarray, integrators: Sequence[str],
                  *, twin: bool = False) -> RunRecord:
-    """A REBOUND run (or its twin from positions scaled by 1 + TWIN_PERTURBATION)."""
+    """A REBOUND run (or its twin from positions scaled by 1 + TWIN_PERTURBATION), with the
+    scenario's forces through REBOUNDx."""
     from orbitsim.reference.sampling import run_rebound
+    from orbitsim.scenario_simulation import scenario_forces
 
-    # WHFast gets the settings of the orbitsim scheme it is paired with, so both use the same
-    # coordinates and corrector.
-    settings = settings_for(scenario, "wisdom_holman") if scheme.name == "whfast" and _registered(
-        "wisdom_holman") else {}
     positions = np.asarray(scenario.positions, dtype=np.float64)
     if twin:
         positions = positions * (1.0 + TWIN_PERTURBATION)
     record = run_rebound(scenario.masses, positions, scenario.velocities, G=scenario.G,
                          softening=scenario.softening, dt=scenario.dt, scheme=scheme, sample_steps=plan,
-                         settings=settings)
+                         settings=_whfast_settings(scenario, scheme), forces=scenario_forces(scenario))
     if twin:
         record.engine = "rebound_twin"
         record.display += " twin"

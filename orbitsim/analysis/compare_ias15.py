@@ -2,10 +2,12 @@
 
 Both always run, from the scenario's state with the same settings (``epsilon`` and ``min_dt``
 from the scenario when its integrator is ias15, else REBOUND's defaults; the first trial step is
-the scenario's ``dt``), and land exactly on the same output times. One of them is the reference
-every run is measured against (``--reference``); the other is reported beside it, with their
-mutual position difference. When ias15 is among the compared integrators the two also form the
-matched pair :data:`~orbitsim.reference.pairs.IAS15_PAIR`.
+the scenario's ``dt``) and the same forces (REBOUND's through REBOUNDx, in its equations of motion),
+and land exactly on the same output times. Where REBOUNDx cannot express the scenario's forces
+(:func:`orbitsim.reference.force_pairing.rebound_refusal`) REBOUND's IAS15 is not run at all.
+One of them is the reference every run is measured against (``--reference``); the other is
+reported beside it, with their mutual position difference. When ias15 is among the compared
+integrators the two also form the matched pair :data:`~orbitsim.reference.pairs.IAS15_PAIR`.
 
 Output times:
 
@@ -32,7 +34,7 @@ from orbitsim.analysis.record import RunRecord, record_from_result
 from orbitsim.reference.adaptive import IAS15_DEFAULTS
 
 __all__ = ["REFERENCE_CHOICES", "escape_summary", "fixed_step_plan", "ias15_settings", "mutual_difference",
-           "output_grid", "run_ias15_references"]
+           "output_grid", "rebound_ias15_refusal", "run_ias15_references"]
 
 #: ``--reference``: which IAS15 serves as the reference (the first is the default).
 REFERENCE_CHOICES = ("rebound", "orbitsim")
@@ -98,6 +100,7 @@ def fixed_step_plan(scenario: Any, times: np.ndarray) -> np.ndarray:
 
 def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) -> RunRecord:
     """orbitsim's ias15 on the comparison's grid, timed after a warm-up that loads its kernels."""
+    from orbitsim.reference.force_pairing import orbitsim_force_lines
     from orbitsim.results import collect_result
     from orbitsim.scenario_simulation import scenario_forces
     from orbitsim.simulation import Simulation
@@ -122,6 +125,7 @@ def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) 
     record = record_from_result(result, key="orbitsim_ias15", order=None,
                                 display=f"orbitsim ias15 (epsilon {settings['epsilon']:g})",
                                 options={**run_settings, "exact_finish_time": 1})
+    record.forces = orbitsim_force_lines(scenario_forces(scenario), "ias15")
     record.step = plan[: record.n_samples].copy()  # the comparison's sample steps, as the other runs'
     record.engine = "reference"
     record.steps_done = int(counters["steps_accepted"])
@@ -130,28 +134,44 @@ def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) 
     return record
 
 
+def rebound_ias15_refusal(scenario: Any) -> str | None:
+    """Why REBOUND's IAS15 cannot carry the scenario's forces (then it is not run), or None."""
+    from orbitsim.reference.bridge import ReboundScheme
+    from orbitsim.reference.force_pairing import rebound_refusal
+    from orbitsim.scenario_simulation import scenario_forces
+
+    return rebound_refusal(scenario_forces(scenario), ReboundScheme("ias15"))
+
+
 def run_ias15_references(scenario: Any, threads: int | None = None) -> dict[str, RunRecord]:
-    """Both IAS15s on the comparison's output times: ``{"rebound": ..., "orbitsim": ...}``."""
+    """Both IAS15s on the comparison's output times: ``{"rebound": ..., "orbitsim": ...}``, without
+    ``"rebound"`` when REBOUND cannot carry the scenario's forces (:func:`rebound_ias15_refusal`)."""
     from orbitsim.reference.adaptive import run_rebound_ias15
+    from orbitsim.scenario_simulation import scenario_forces
 
     settings = ias15_settings(scenario)
+    native = _run_native(scenario, settings, threads)
+    if rebound_ias15_refusal(scenario):
+        return {"orbitsim": native}
     _, _, _, plan, times = output_grid(scenario)
     rebound = run_rebound_ias15(scenario.masses, scenario.positions, scenario.velocities, G=scenario.G,
                                 softening=scenario.softening, first_dt=float(scenario.dt), times=times, labels=plan,
-                                settings=settings, display=f"REBOUND IAS15 (epsilon {settings['epsilon']:g})")
-    return {"rebound": rebound, "orbitsim": _run_native(scenario, settings, threads)}
+                                settings=settings, display=f"REBOUND IAS15 (epsilon {settings['epsilon']:g})",
+                                forces=scenario_forces(scenario))
+    return {"rebound": rebound, "orbitsim": native}
 
 
 def rebound_ias15_twin(scenario: Any, perturbation: float) -> RunRecord:
     """REBOUND's IAS15 again, from positions scaled by ``1 + perturbation`` (the ias15 pair's twin)."""
     from orbitsim.reference.adaptive import run_rebound_ias15
+    from orbitsim.scenario_simulation import scenario_forces
 
     _, _, _, plan, times = output_grid(scenario)
     positions = np.asarray(scenario.positions, dtype=np.float64) * (1.0 + perturbation)
     return run_rebound_ias15(scenario.masses, positions, scenario.velocities, G=scenario.G,
                              softening=scenario.softening, first_dt=float(scenario.dt), times=times, labels=plan,
                              settings=ias15_settings(scenario), engine="rebound_twin", key="ias15",
-                             display="REBOUND IAS15 twin")
+                             display="REBOUND IAS15 twin", forces=scenario_forces(scenario))
 
 
 def mutual_difference(a: RunRecord, b: RunRecord) -> tuple[float, float]:
@@ -169,10 +189,21 @@ def _two_body_energy(r: np.ndarray, v: np.ndarray, mu: float) -> float:
     return 0.5 * float(v @ v) - mu / float(np.linalg.norm(r))
 
 
+#: Bodies named in "has ... bound to it" before the rest are counted.
+_BOUND_NAMES_SHOWN = 3
+
+
 def escape_summary(record: RunRecord, masses: np.ndarray, G: float, names: list[str]) -> str:
-    """The final state in a phrase per body: bound to another body (negative two-body energy with
-    it; the most bound partner is named), escaping (bound to none, positive energy against the
-    barycentre of all the others, and receding from it), or unbound."""
+    """The final state in a phrase per body, the lighter of a bound pair bound to the heavier.
+
+    * ``b: bound to star``: the body's most bound partner (the lowest negative two-body energy)
+      among the bodies at least as heavy (of equal masses, the earlier one);
+    * ``star: has b, c bound to it``: a body no heavier one holds, which holds lighter ones;
+    * ``escaping``, ``unbound`` or ``bound`` (with its distance): a body in no bound pair, by its
+      energy against the barycentre of all the others (escaping: positive and receding).
+
+    A star used to read ``star: bound to b``, its innermost planet being its most bound partner.
+    """
     if record.n_samples == 0:
         return "no samples"
     m = np.asarray(masses, dtype=np.float64)
@@ -181,13 +212,26 @@ def escape_summary(record: RunRecord, masses: np.ndarray, G: float, names: list[
     def name(i: int) -> str:
         return names[i] if i < len(names) else f"body {i}"
 
+    def heavier(i: int, j: int) -> bool:
+        return m[j] > m[i] or (m[j] == m[i] and j < i)
+
+    holder: dict[int, int] = {}
+    for i in range(m.size):
+        energy = {j: _two_body_energy(pos[i] - pos[j], vel[i] - vel[j], G * (m[i] + m[j]))
+                  for j in range(m.size) if j != i and heavier(i, j) and np.any(pos[i] != pos[j])}
+        j = min(energy, key=energy.__getitem__, default=None)
+        if j is not None and energy[j] < 0.0:
+            holder[i] = j
     parts = []
     for i in range(m.size):
-        pair_energy = [_two_body_energy(pos[i] - pos[j], vel[i] - vel[j], G * (m[i] + m[j]))
-                       if j != i and np.any(pos[i] != pos[j]) else math.inf for j in range(m.size)]
-        j = int(np.argmin(pair_energy)) if m.size > 1 else i
-        if m.size > 1 and pair_energy[j] < 0.0:
-            parts.append(f"{name(i)}: bound to {name(j)}")
+        if i in holder:
+            parts.append(f"{name(i)}: bound to {name(holder[i])}")
+            continue
+        held = [name(k) for k in range(m.size) if holder.get(k) == i]
+        if held:
+            shown = ", ".join(held[:_BOUND_NAMES_SHOWN])
+            more = f" and {len(held) - _BOUND_NAMES_SHOWN} more" if len(held) > _BOUND_NAMES_SHOWN else ""
+            parts.append(f"{name(i)}: has {shown}{more} bound to it")
             continue
         others = np.arange(m.size) != i
         rest = float(m[others].sum())
@@ -196,7 +240,7 @@ def escape_summary(record: RunRecord, masses: np.ndarray, G: float, names: list[
         r = pos[i] - (m[others] @ pos[others]) / rest
         v = vel[i] - (m[others] @ vel[others]) / rest
         dist = float(np.linalg.norm(r))
-        energy = 0.5 * float(v @ v) - G * (rest + m[i]) / dist if dist > 0 else -math.inf
-        state = "escaping" if energy > 0.0 and float(r @ v) > 0.0 else ("unbound" if energy > 0.0 else "bound")
+        energy_i = 0.5 * float(v @ v) - G * (rest + m[i]) / dist if dist > 0 else -math.inf
+        state = "escaping" if energy_i > 0.0 and float(r @ v) > 0.0 else ("unbound" if energy_i > 0.0 else "bound")
         parts.append(f"{name(i)}: {state} (r = {dist:.4g} from the others' barycentre)")
     return "; ".join(parts)

@@ -1,13 +1,14 @@
 """The files ``orbitsim compare`` writes: compare.h5, summary.json, report.md/.html and figures.
 
-``summary.json`` (format ``orbitsim.compare.summary``, version 3) holds, besides provenance:
+``summary.json`` (format ``orbitsim.compare.summary``, version 4) holds, besides provenance:
 
 * ``scenario``: name, source, sha256, bodies, G, softening, dt, steps, t_end, samples, adaptive
   (for an adaptive scenario ``dt`` is ias15's first trial step, ``steps`` its output intervals
   and ``output_interval`` their length);
 * ``runs``: one entry per run (label, engine, integrator, display, order, options, dt, steps,
   samples, status, message, max_abs_energy_error, energy_drift_slope, final_position_error,
-  wall_time_s, steps_per_second), the reference last;
+  wall_time_s, steps_per_second, forces: how the run applies each of the scenario's forces, one
+  phrase per force), the reference last;
 * ``reference``: label, choice (``rebound`` or ``orbitsim``), max_abs_energy_error, energy_limit,
   reliable, problem;
 * ``references``: both IAS15s side by side, one entry each (choice, label, display, chosen,
@@ -17,9 +18,12 @@
   max_relative_position_difference, time_of_max, tolerance, allowed_at_max, tolerance_source,
   max_allowed, testable_limit, untestable_from, nominal_tolerance, twin_max, worst_ratio,
   within_tolerance, verdict, verdict_label, agree, note); ``agree`` is true only for a pass;
+  ``verdict`` ``not_comparable`` (its ``note`` says why, the measured fields are null) marks a
+  pair whose codes cannot apply the scenario's forces alike;
 * ``verdict`` (``pass``, ``fail`` or ``not_testable``), ``passed``, ``failed_pairs`` and
   ``untestable_pairs``: the verdict behind the exit code (0, 1 and 5).
 
+Version 4 added each run's ``forces`` and the pair verdict ``not_comparable``.
 Version 3 added ``references``, ``reference.choice`` and the scenario's ``adaptive`` and
 ``output_interval``; the reference's run in ``runs`` is the chosen one.
 Version 2 added ``reference``, ``verdict``, ``untestable_pairs`` and the per-pair verdict fields,
@@ -39,7 +43,7 @@ from typing import Any
 from orbitsim.analysis.compare import CompareResult
 from orbitsim.analysis.compare_references import reference_rows, references_table
 from orbitsim.analysis.figures import compare_figures
-from orbitsim.analysis.metrics import REFERENCE_ENERGY_LIMIT, TESTABLE_LIMIT
+from orbitsim.analysis.metrics import NOT_COMPARABLE, REFERENCE_ENERGY_LIMIT, TESTABLE_LIMIT
 from orbitsim.analysis.report import (
     Figure,
     Report,
@@ -56,7 +60,7 @@ from orbitsim.provenance import provenance
 from orbitsim.reference.pairs import ENCOUNTER_CHAOS, TWIN_MARGIN
 
 SUMMARY_FORMAT = "orbitsim.compare.summary"
-SUMMARY_VERSION = 3
+SUMMARY_VERSION = 4
 
 _FIGURE_CAPTIONS = {
     "energy": "Relative energy error |dE/E| against time (log axes): orbitsim left, REBOUND right, "
@@ -91,13 +95,14 @@ def summary_dict(result: CompareResult, command: str) -> dict[str, Any]:
             "samples": rec.n_samples, "status": rec.status, "message": rec.message,
             "max_abs_energy_error": m.max_abs_energy_error, "energy_drift_slope": m.energy_drift_slope,
             "final_position_error": m.final_position_error, "wall_time_s": m.wall_time_s,
-            "steps_per_second": m.steps_per_second,
+            "steps_per_second": m.steps_per_second, "forces": list(rec.forces),
         })
     pairs = [{
         "name": v.name, "orbitsim": v.orbitsim_label, "rebound": v.rebound_label, "reason": v.pair.reason,
         "builtin": v.pair.builtin, "max_relative_position_difference": v.max_difference,
         "time_of_max": v.time_of_max, "tolerance": v.tolerance, "allowed_at_max": v.allowed_at_max,
-        "tolerance_source": "twin" if v.twin_limited else "nominal", "max_allowed": v.max_allowed,
+        "tolerance_source": None if v.verdict == NOT_COMPARABLE else "twin" if v.twin_limited else "nominal",
+        "max_allowed": v.max_allowed,
         "testable_limit": TESTABLE_LIMIT, "untestable_from": v.untestable_from,
         "nominal_tolerance": v.nominal_tolerance, "twin_max": v.twin_max, "worst_ratio": v.worst_ratio,
         "within_tolerance": v.within_tolerance, "verdict": v.verdict, "verdict_label": v.label,
@@ -177,6 +182,8 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
         "No matched pairs were run."]
     table = scenario_table(sc, steps=_steps(result), samples=result.reference.n_samples, end_time=_end_time(result))
     sections = [Section("Scenario", [table]), Section("Runs", [runs])]
+    if getattr(sc, "forces", ()):
+        sections.append(Section("Forces", [forces_table(result)]))
     if result.references:
         sections.append(Section("IAS15 references", [references_table(result)]))
     sections.append(Section("Matched pairs", pair_blocks))
@@ -185,6 +192,20 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
         sections.append(Section("Notes", list(result.notes)))
     sections.append(reproduce_section(command, sc))
     return Report(f"orbitsim vs REBOUND: {sc.name}", lead, sections)
+
+
+def forces_table(result: CompareResult) -> Table:
+    """How each run applies each of the scenario's forces: orbitsim's runs and REBOUND's side by side."""
+    from orbitsim.forces.schema import describe_forces
+
+    records = [*result.runs, *result.references.values()] or [*result.runs, result.reference]
+    table = Table(["run", "forces and how they are applied"],
+                  [[rec.display, "; ".join(rec.forces) or "none"] for rec in records])
+    table.caption = (f"The scenario's forces: {describe_forces(result.scenario.forces)}. REBOUND carries them "
+                     "through REBOUNDx, arranged as orbitsim applies each: position-only forces with gravity, "
+                     "velocity-dependent ones as their own operator over dt/2 before and after each step "
+                     "(Tamayo et al. 2020), every force in IAS15's equations of motion (docs/compare.md).")
+    return table
 
 
 def encounter_sentences(result: CompareResult) -> list[str]:

@@ -58,5 +58,6 @@ def references_table(result: Any) -> Table:
         "differences are relative to the system's size; through close encounters of a chaotic system they "
         "grow with the round-off amplification (see the pair's verdict). Steps: IAS15's accepted steps; wall "
         "time: orbitsim's grid loop after Numba's compile/cache load, REBOUND's time inside sim.integrate. "
-        "Final state: each body's distance from the barycentre of the others, and whether it is bound to them.")
+        "Final state: the lighter body of each bound pair is bound to the heavier; a body in no bound pair is "
+        "escaping, unbound or bound by its energy against the barycentre of the others, at the distance given.")
     return table

@@ -1,6 +1,13 @@
 """Files of ``orbitsim convergence``: summary.json, report.md/.html, convergence.png and
 work_precision.png.
 
+``summary.json`` (format ``orbitsim.convergence.summary``, version 2): per series its engine,
+key, display, declared and fitted order, ``note`` (why the order is what it is, or missing: the
+words of the report's table and lead line), ``fit_kind`` (``fitted``, ``too_coarse``, ``floor``,
+``round_off``, ``no_data`` or empty for an adaptive scheme), ``adaptive``, ``forces`` and every rung
+(``added``: a rung the default ladder added for this scheme); ``dts`` is every dt any ladder ran.
+Version 2 added ``fit_kind``, ``adaptive``, ``forces``, ``added`` and ``notes``.
+
 In both figures orbitsim's integrators are solid lines with circles and REBOUND's dashed with
 squares; a REBOUND scheme matched with an orbitsim one shares its colour. Filled markers entered
 the order fit, hollow ones did not (round-off floor or pre-asymptotic).
@@ -82,18 +89,19 @@ def summary_dict(result: ConvergenceResult, command: str, tolerance: float) -> d
         return float(v) if np.isfinite(v) else None
 
     return {
-        "format": "orbitsim.convergence.summary", "format_version": 1, "command": command,
+        "format": "orbitsim.convergence.summary", "format_version": 2, "command": command,
         "scenario": {"name": result.scenario.name, "sha256": result.scenario.sha256,
                      "source": str(result.scenario.source)},
         "end_time": result.end_time, "dts": result.dts, "order_tolerance": tolerance,
         "series": [{
             "engine": s.engine, "key": s.key, "display": s.display, "declared_order": s.declared_order,
-            "fitted_order": clean(s.fitted_order), "note": s.note,
+            "fitted_order": clean(s.fitted_order), "note": s.note, "fit_kind": s.fit_kind, "adaptive": s.adaptive,
+            "forces": list(s.forces),
             "points": [{"dt": p.dt, "steps": p.steps, "end_time": p.end_time, "error": clean(p.error),
-                        "wall_time_s": p.wall_time_s, "status": p.status, "used_in_fit": u}
+                        "wall_time_s": p.wall_time_s, "status": p.status, "used_in_fit": u, "added": p.added}
                        for p, u in zip(s.points, s.fit_used, strict=True)],
         } for s in result.series],
-        "off_order": result.check(tolerance), "provenance": provenance(),
+        "off_order": result.check(tolerance), "notes": list(result.notes), "provenance": provenance(),
     }
 
 
@@ -108,29 +116,49 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
     lead = [f"End time {span}; error = max over bodies of |x - x_ref| "
             "divided by the largest distance from the origin, against REBOUND IAS15 stopped exactly at n dt."]
     lead.append("PASS: every fitted order is within " f"{tolerance:g} of the declared order." if not off
-                else "Fitted orders off the declared ones by more than " f"{tolerance:g}: " + "; ".join(off))
+                else "Fitted orders missing or off the declared ones by more than " f"{tolerance:g}: "
+                + "; ".join(off))
     orders = Table(["integrator", "declared order", "fitted order", "points in fit", "note"], [
         [s.display, fmt(s.declared_order), fmt(s.fitted_order, 3), str(sum(s.fit_used)), s.note]
         for s in result.series])
+    orders.caption = ("Fit: least-squares slope over the finest (up to 4) rungs of the asymptotic range: rungs below "
+                      "10 % error and above the round-off floor, from the finest such rung as far coarser as their "
+                      "local slopes agree (within 10 %, at least 0.1). The note says what was left out, or why there "
+                      "is no order and which --dts to try.")
+
+    def by_dt(s: ConvergenceSeries, value: str) -> list[str]:
+        cells = {p.dt: fmt(getattr(p, value), 3) + (" (added)" if p.added and value == "error" else "")
+                 for p in s.points}
+        return [cells.get(dt, "") for dt in result.dts]
+
     errors = Table(["integrator", *[f"dt = {dt:.4g}" for dt in result.dts]], [
-        [s.display, *[fmt(p.error, 3) for p in s.points]] for s in result.series],
-        caption="Relative position error at the end time for each dt (steps: T / dt whole steps).")
+        [s.display, *by_dt(s, "error")] for s in result.series],
+        caption="Relative position error at the end time for each dt (steps: T / dt whole steps). \"(added)\": a "
+                "rung the default ladder added for this integrator to reach its asymptotic range.")
     walls = Table(["integrator", *[f"dt = {dt:.4g}" for dt in result.dts]], [
-        [s.display, *[fmt(p.wall_time_s, 3) for p in s.points]] for s in result.series],
+        [s.display, *by_dt(s, "wall_time_s")] for s in result.series],
         caption="Wall time in seconds (best of repeated runs when a run is shorter than 0.05 s).")
     captions = {
         "convergence": "Error at the end time against dt (log-log). Filled markers entered the fit; hollow "
-                       "ones sit on the round-off floor or outside the asymptotic regime.",
+                       "ones sit on the round-off floor, outside the asymptotic range, or beyond its four finest "
+                       "rungs.",
         "work_precision": "Error against wall time: lower-left is better. orbitsim solid, REBOUND dashed.",
     }
     steps = round(result.end_time / abs(sc.dt)) if sc.dt else 0
-    return Report(f"Convergence: {sc.name}", lead, [
-        Section("Fitted orders", [orders]),
-        Section("Errors", [errors, walls]),
-        Section("Figures", [Figure(p.name, captions[k]) for k, p in figures.items()]),
-        Section("Scenario", [scenario_table(sc, steps=steps, samples=2)]),
-        reproduce_section(command, sc),
-    ])
+    sections = [Section("Fitted orders", [orders]), Section("Errors", [errors, walls])]
+    if getattr(sc, "forces", ()):
+        from orbitsim.forces.schema import describe_forces
+
+        forces = Table(["integrator", "forces and how they are applied"],
+                       [[s.display, "; ".join(s.forces) or "none"] for s in result.series])
+        forces.caption = (f"The scenario's forces: {describe_forces(sc.forces)}; the IAS15 reference (REBOUND) "
+                          "carries every one through REBOUNDx in its equations of motion.")
+        sections.append(Section("Forces", [forces]))
+    if result.notes:
+        sections.append(Section("Notes", list(result.notes)))
+    sections += [Section("Figures", [Figure(p.name, captions[k]) for k, p in figures.items()]),
+                 Section("Scenario", [scenario_table(sc, steps=steps, samples=2)]), reproduce_section(command, sc)]
+    return Report(f"Convergence: {sc.name}", lead, sections)
 
 
 def write_convergence_outputs(result: ConvergenceResult, outdir: Path, command: str,

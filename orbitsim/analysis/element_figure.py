@@ -110,8 +110,10 @@ def _primary_text(primary: str) -> str:
 
 
 def draw_elements(data: dict[str, Any], target: Path, title: str, length: str, time_unit: str,
-                  max_legend: int) -> None:
-    """Draw one panel per element against time into ``target`` (format from its suffix)."""
+                  max_legend: int, events: dict[str, np.ndarray] | None = None) -> None:
+    """Draw one panel per element against time into ``target`` (format from its suffix); with
+    ``events`` (kind -> times, :func:`orbitsim.analysis.event_marks.read_event_times`) each panel
+    marks them, and the last panel's legend names the kinds."""
     import matplotlib
 
     matplotlib.use("Agg")  # files only: no display needed, and no GUI toolkit imported
@@ -129,6 +131,10 @@ def draw_elements(data: dict[str, Any], target: Path, title: str, length: str, t
                     label=body if k < max_legend else None)
         ax.set_ylabel(LABELS[name].format(length=length))
         ax.grid(True, alpha=0.3)
+        if events:
+            from orbitsim.analysis.event_marks import mark_events
+
+            mark_events(ax, events, legend=ax is axes[-1])
     shown = f"{len(bodies)} of {data['n_bodies']} bodies" if len(bodies) < data["n_bodies"] else "every body"
     axes[0].set_title(f"{_primary_text(data['primary'])} ({shown})", fontsize="medium")
     axes[-1].set_xlabel(f"time [{time_unit}]")

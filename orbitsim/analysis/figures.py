@@ -120,14 +120,18 @@ def position_error_figure(result: Any, path: Path) -> Path:
 
 
 def pair_figure(result: Any, path: Path) -> Path | None:
-    """Each matched pair's relative position difference over time, with its tolerance."""
-    if not result.verdicts:
+    """Each matched pair's relative position difference over time, with its tolerance (pairs that
+    are not comparable have no difference to draw)."""
+    from orbitsim.analysis.metrics import NOT_COMPARABLE
+
+    verdicts = [v for v in result.verdicts if v.verdict != NOT_COMPARABLE]
+    if not verdicts:
         return None
     time_unit, _ = unit_labels(result.scenario.units)
     colors = run_colors(result)
     with figure_style() as plt:
         fig, ax = plt.subplots(figsize=(9.5, 5.2), constrained_layout=True)
-        for verdict in result.verdicts:
+        for verdict in verdicts:
             ours, theirs = result.record(verdict.orbitsim_label), result.record(verdict.rebound_label)
             diff = relative_position_difference(ours.positions, theirs.positions)
             twin = result.twins.get(verdict.pair.rebound.key)

@@ -18,7 +18,10 @@ A matched pair's verdict is one of (:func:`pair_verdict`):
   above :data:`TESTABLE_LIMIT`, where agreement no longer tests the scheme;
 * ``not_testable``: the same, with the nominal term grown past the limit (> 10^8 steps);
 * ``reference_unreliable``: within tolerance, but the IAS15 reference fails
-  :func:`reference_problem`, a sign of an encounter no run here resolves.
+  :func:`reference_problem`, a sign of an encounter no run here resolves;
+* ``not_comparable``: the two codes cannot integrate the same problem (a force one of them cannot
+  apply as the other does, :mod:`orbitsim.reference.force_pairing`), so the pair is not run
+  against each other and neither agrees nor disagrees (:func:`not_comparable_verdict`).
 """
 
 from __future__ import annotations
@@ -54,13 +57,16 @@ REFERENCE_ENERGY_LIMIT = 1e-6
 
 #: Verdict kinds of a matched pair; only AGREE is a pass.
 AGREE, DISAGREE, CHAOTIC, LOOSE, NO_REFERENCE = "agree", "disagree", "chaotic", "not_testable", "reference_unreliable"
+NOT_COMPARABLE = "not_comparable"
 #: What reports print for each kind.
 VERDICT_LABELS = {
     AGREE: "agree", DISAGREE: "DISAGREE", CHAOTIC: "chaotic: agreement not testable",
     LOOSE: "not testable: tolerance too loose", NO_REFERENCE: "not testable: reference unreliable",
+    NOT_COMPARABLE: "not comparable",
 }
 #: The short tag that starts a verdict's terminal line.
-VERDICT_TAGS = {AGREE: "agree", DISAGREE: "DISAGREE", CHAOTIC: "CHAOTIC", LOOSE: "UNTESTED", NO_REFERENCE: "UNTESTED"}
+VERDICT_TAGS = {AGREE: "agree", DISAGREE: "DISAGREE", CHAOTIC: "CHAOTIC", LOOSE: "UNTESTED", NO_REFERENCE: "UNTESTED",
+                NOT_COMPARABLE: "UNTESTED"}
 
 
 def max_abs_energy_error(record: RunRecord) -> float:
@@ -230,11 +236,16 @@ class PairVerdict:
         return VERDICT_LABELS[self.verdict]
 
     def tolerance_source(self) -> str:
-        """What set the allowed difference at the largest difference: the nominal term or the twin."""
+        """What set the allowed difference at the largest difference: the nominal term or the twin
+        (``n/a`` for a pair that is not comparable)."""
+        if self.verdict == NOT_COMPARABLE:
+            return "n/a"
         return "round-off amplification (twin divergence)" if self.twin_limited else "nominal (n^1.5)"
 
     def terminal_line(self) -> str:
         """One line for the terminal: tag, pair, difference, what it was allowed and why."""
+        if self.verdict == NOT_COMPARABLE:
+            return f"{VERDICT_TAGS[self.verdict]:<8} {self.name}: {self.short_reason()}"
         source = (f", set by round-off amplification: a REBOUND twin from a 4-ulp perturbation diverged by up to "
                   f"{self.twin_max:.2e}" if self.twin_limited else "")
         line = (f"{VERDICT_TAGS[self.verdict]:<8} {self.name}: max difference {self.max_difference:.2e} "
@@ -246,7 +257,7 @@ class PairVerdict:
         where = f"{TESTABLE_LIMIT:g} of the system's size from t = {self.untestable_from:.6g} on"
         return {CHAOTIC: f"{self.label} (round-off amplification raises the allowed difference above {where})",
                 LOOSE: f"{self.label} (the nominal tolerance grows above {where})",
-                NO_REFERENCE: self.label}.get(self.verdict, "")
+                NO_REFERENCE: self.label, NOT_COMPARABLE: f"{self.label}: {self.note}"}.get(self.verdict, "")
 
 
 def _twin_series(twin: RunRecord | None, theirs: RunRecord, n: int) -> np.ndarray | None:
@@ -330,4 +341,16 @@ def pair_verdict(pair: MatchedPair, ours: RunRecord, theirs: RunRecord,
         max_allowed=float(np.max(allowed)) if diff.size else nominal, nominal_tolerance=nominal,
         twin_max=twin_max, worst_ratio=ratio, within_tolerance=within, untestable_from=untestable_from,
         verdict=kind, note=note,
+    )
+
+
+def not_comparable_verdict(pair: MatchedPair, why: str) -> PairVerdict:
+    """The verdict of a pair whose two codes cannot integrate the same problem: ``why`` (one
+    clause) is its note, and every measured field is nan (the two runs are not compared)."""
+    nan = math.nan
+    return PairVerdict(
+        pair=pair, orbitsim_label=f"orbitsim/{pair.orbitsim}", rebound_label=f"rebound/{pair.rebound.key}",
+        max_difference=nan, time_of_max=nan, tolerance=nan, allowed_at_max=nan, twin_limited=False, max_allowed=nan,
+        nominal_tolerance=nan, twin_max=nan, worst_ratio=nan, within_tolerance=False, untestable_from=nan,
+        verdict=NOT_COMPARABLE, note=why,
     )

@@ -52,6 +52,11 @@ class RunRecord:
         ``"complete"``, ``"diverged"`` or ``"failed"``.
     message : str
         Why a run stopped early, else ``""``.
+    extra : dict
+        Engine-specific extras (IAS15's accepted steps per sample, counters).
+    forces : tuple of str
+        How this run applies each of the scenario's forces, one phrase per force (empty without
+        forces; :mod:`orbitsim.reference.force_pairing`).
     """
 
     engine: str
@@ -74,6 +79,7 @@ class RunRecord:
     status: str = "complete"
     message: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    forces: tuple[str, ...] = ()
 
     @property
     def label(self) -> str:
@@ -127,9 +133,12 @@ class StateDiagnostics:
     ----------
     masses : (N,) array
     G, softening : float
+    forces : ForceSet, optional
+        The run's forces: their energy (:func:`orbitsim.forces.kernels.force_energy`) joins the
+        potential, as orbitsim's forced runs record it, so both codes' |dE/E| measure one quantity.
     """
 
-    def __init__(self, masses: np.ndarray, G: float, softening: float) -> None:
+    def __init__(self, masses: np.ndarray, G: float, softening: float, forces: Any | None = None) -> None:
         from orbitsim.physics.diagnostics import potential_rows_scratch
 
         self.m = np.ascontiguousarray(masses, dtype=np.float64)
@@ -137,6 +146,7 @@ class StateDiagnostics:
         self.eps2 = float(softening) ** 2
         self.rows = potential_rows_scratch(self.m.shape[0])
         self._out = np.zeros(3)
+        self.forces = forces if forces is not None and forces.ids.shape[0] else None
 
     def __call__(self, pos: np.ndarray, vel: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
         """``(kinetic, potential, momentum, angular_momentum)`` of one state (N, 3)."""
@@ -155,6 +165,10 @@ class StateDiagnostics:
         angular_momentum_into(x, v, self.m, angular)
         kinetic = float(kinetic_energy(v, self.m))
         potential = float(potential_energy(x, self.m, self.G, self.eps2, self.rows))
+        if self.forces is not None:
+            from orbitsim.forces.kernels import force_energy
+
+            potential += float(force_energy(x, v, self.m, self.G, *self.forces.arrays))
         return kinetic, potential, momentum, angular
 
 

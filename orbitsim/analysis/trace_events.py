@@ -14,6 +14,7 @@ trace, reported as :class:`~orbitsim.io.schema.TraceError` naming the dataset, a
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,12 +23,15 @@ import numpy as np
 from orbitsim.events.log import EVENT_KINDS
 from orbitsim.io.schema import ELEMENTS, TraceError
 
-__all__ = ["COUNTED_KINDS", "BodyExit", "ElementsInfo", "EventRow", "bodies_left", "elements_info", "event_counts",
-           "first_events", "format_time"]
+__all__ = ["COUNTED_KINDS", "EVENTS_BLOCK", "BodyExit", "ElementsInfo", "EventRow", "bodies_left", "elements_info",
+           "event_counts", "event_times", "first_events", "format_time", "iter_events"]
 
 #: The kinds the batch summary counts, one column each; ``lost`` (an overflow of the event buffer,
 #: never expected) is listed by ``info`` but not a summary column.
 COUNTED_KINDS = ("encounter", "collision", "escape", "unresolved")
+#: Rows of the ``events`` table read at a time by :func:`iter_events`: memory stays flat for a run
+#: that logged millions of encounters.
+EVENTS_BLOCK = 65536
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,33 @@ def first_events(f: Any, limit: int) -> list[EventRow]:
     times = np.asarray(_column(f, "events/time")[rows], dtype=np.float64)
     kinds, details = _text(f, "events/kind", rows), _text(f, "events/details", rows)
     return [EventRow(float(t), k, d) for t, k, d in zip(times, kinds, details, strict=True)]
+
+
+def iter_events(f: Any, kind: str | None = None, block: int = EVENTS_BLOCK) -> Iterator[EventRow]:
+    """Every row of the ``events`` table (only those of ``kind`` when given), in the order they
+    happened, read ``block`` rows at a time; nothing without a table."""
+    if "events" not in f:
+        return
+    count = int(_column(f, "events/kind").shape[0])
+    for start in range(0, count, block):
+        rows = slice(start, min(count, start + block))
+        times = np.asarray(_column(f, "events/time")[rows], dtype=np.float64)
+        kinds, details = _text(f, "events/kind", rows), _text(f, "events/details", rows)
+        for t, k, d in zip(times, kinds, details, strict=True):
+            if kind is None or k == kind:
+                yield EventRow(float(t), k, d)
+
+
+def event_times(f: Any) -> dict[str, np.ndarray] | None:
+    """Each kind's event times (kinds in :data:`~orbitsim.events.log.EVENT_KINDS` order, only
+    those that happened; a ``lost`` row has no time and is left out), or None without a table."""
+    if "events" not in f:
+        return None
+    kinds = np.array(_text(f, "events/kind"), dtype=object)
+    times = np.asarray(_column(f, "events/time")[()], dtype=np.float64)
+    order = [k for k in EVENT_KINDS if k in set(kinds)] + sorted(set(kinds) - set(EVENT_KINDS))
+    out = {kind: times[(kinds == kind) & np.isfinite(times)] for kind in order}
+    return {kind: t for kind, t in out.items() if t.size}
 
 
 def bodies_left(f: Any) -> list[BodyExit] | None:

@@ -6,11 +6,12 @@ processes also isolate a crashing run. Each worker gets ``NUMBA_NUM_THREADS`` th
 ``env`` (applied in the worker process before it imports anything), chosen so that
 workers x Numba threads <= cores: oversubscribing the cores would only slow every run down.
 
-The local cluster's processes ignore SIGINT. A terminal's Ctrl-C goes to every process of its
-foreground group, workers included, and a worker that took it died with a traceback of its own
-(68 lines for two workers) and took its run down, while answering Ctrl-C is the driver's job: stop,
-keep what finished, say so in one line (:mod:`orbitsim.batch.driver`). The driver closes the
-workers instead.
+The local cluster's processes ignore SIGINT and SIGTERM. A terminal's Ctrl-C goes to every
+process of its foreground group, workers included, as Slurm's SIGTERM goes to every process of a
+job, and a worker that took it died (with a traceback of its own: 68 lines for two workers) and
+took its run down, leaving that run's lock file, while answering the signal is the driver's job:
+stop, keep what finished, say so in one line (:mod:`orbitsim.batch.driver`). The driver closes the
+workers instead (Dask asks each to stop, and kills one that does not within seconds).
 
 For an existing cluster (``--scheduler tcp://HOST:PORT``) the workers' own settings apply; see
 docs/batch.md for how to start ``dask worker`` with a matching ``NUMBA_NUM_THREADS``.
@@ -75,37 +76,44 @@ def plan_local(
     return ClusterPlan(workers=n, threads=threads or max(1, cores // n))
 
 
-def dask_setup(worker: Any = None) -> None:
-    """Worker preload: ignore SIGINT (see the module docstring).
+#: The signals the cluster's processes ignore: the driver answers them (see the module docstring).
+IGNORED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    Workers started with the cluster inherit an ignored SIGINT already (:func:`_sigint_ignored`);
+
+def dask_setup(worker: Any = None) -> None:
+    """Worker preload: ignore SIGINT and SIGTERM (see the module docstring).
+
+    Workers started with the cluster inherit ignored signals already (:func:`_signals_ignored`);
     this covers a worker the nanny restarts later (after one died), which is spawned while the
-    driver answers Ctrl-C again. Dask calls it on the worker's event-loop thread, the process's
+    driver answers a signal again. Dask calls it on the worker's event-loop thread, the process's
     main thread, the only one that may set a signal handler.
     """
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for signum in IGNORED_SIGNALS:
+            signal.signal(signum, signal.SIG_IGN)
 
 
 @contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Ignore SIGINT in this process while the cluster's processes are spawned.
+def _signals_ignored() -> Iterator[None]:
+    """Ignore SIGINT and SIGTERM in this process while the cluster's processes are spawned.
 
-    A child inherits an ignored SIGINT across ``exec`` (a handler, by contrast, is reset to the
+    A child inherits an ignored signal across ``exec`` (a handler, by contrast, is reset to the
     default), and CPython installs its KeyboardInterrupt handler only where SIGINT is at its
-    default, so the nannies and workers spawned now ignore Ctrl-C for their whole life (checked
-    in /proc/<pid>/status, SigIgn). The cost: a Ctrl-C during the seconds the cluster takes to
-    start is lost. Blocking SIGINT instead would keep it pending, but the kernel then hands it to
-    another thread (OpenBLAS's), where the ignored disposition drops it all the same.
+    default, so the workers spawned now ignore both for their whole life (checked in
+    /proc/<pid>/status, SigIgn). The cost: a signal during the seconds the cluster takes to start
+    is lost (nothing has been submitted yet; Slurm follows its SIGTERM with SIGKILL). Blocking
+    them instead would keep them pending, but the kernel then hands them to another thread
+    (OpenBLAS's), where the ignored disposition drops them all the same.
     """
     if threading.current_thread() is not threading.main_thread():
         yield  # only the main thread may change handlers; the workers then keep Dask's default
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    previous = {signum: signal.signal(signum, signal.SIG_IGN) for signum in IGNORED_SIGNALS}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def _local_cluster(plan: ClusterPlan) -> Any:
@@ -125,7 +133,7 @@ def _local_cluster(plan: ClusterPlan) -> Any:
         # through its summary row, and a lost worker through the error the driver raises.
         silence_logs=logging.CRITICAL,
         env={"NUMBA_NUM_THREADS": str(plan.threads)},
-        preload=[__name__],  # dask_setup: a restarted worker ignores Ctrl-C too
+        preload=[__name__],  # dask_setup: a restarted worker ignores Ctrl-C and SIGTERM too
     )
 
 
@@ -150,7 +158,7 @@ def open_client(scheduler: str | None, plan: ClusterPlan | None = None) -> Itera
     cluster = None
     try:
         if scheduler is None:
-            with _sigint_ignored():
+            with _signals_ignored():
                 cluster = _local_cluster(plan or plan_local())
             client = Client(cluster)
         else:

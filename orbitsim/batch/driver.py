@@ -10,9 +10,12 @@ Reliability comes from Dask and from content addressing, not from bookkeeping of
 * A run that fails is a ``failed`` row (see :mod:`orbitsim.batch.task`); the sweep goes on.
 * Rows are placed by case index, never by completion order, and every number in a row is read
   from the trace, so the summary does not depend on how many workers ran it or in which order.
-* Ctrl-C stops the sweep: what is queued is cancelled, the cluster is shut down (a second Ctrl-C
-  does not break that), and only then is the summary written, reading back from disk every case
-  that has no row yet, so a run that completed during the shutdown is ``complete``, not ``not run``.
+* Ctrl-C, or SIGTERM (what ``timeout`` and Slurm send), stops the sweep: what is queued is cancelled,
+  the cluster is shut down (a second signal does not break that), and only then is the summary
+  written, reading back from disk every case that has no row yet, so a run that completed during
+  the shutdown is ``complete``, not ``not run``. The lock and ``.tmp`` files of the runs the
+  shutdown killed are removed (their holders are gone), and so are any a killed sweep left for a
+  rerun to find (:func:`clear_abandoned`).
 * With ``skip_invalid`` a sweep's invalid cases are ``invalid`` rows (no run id, no trace) and the
   valid ones run.
 """
@@ -34,8 +37,11 @@ from orbitsim.batch.summary import write_csv, write_h5
 from orbitsim.batch.sweep import Case, InvalidCase, Sweep
 from orbitsim.batch.task import failed_result, run_case, trace_result, warm_up
 
-__all__ = ["TASK_RETRIES", "SweepInterrupted", "SweepOutcome", "completed_result", "interrupt_once", "run_sweep",
-           "trace_path_for"]
+__all__ = ["TASK_RETRIES", "SweepInterrupted", "SweepOutcome", "SweepSignal", "clear_abandoned", "completed_result",
+           "interrupt_once", "run_sweep", "trace_path_for"]
+
+#: The signals that stop a sweep: Ctrl-C, and SIGTERM (``timeout``, Slurm's ``scancel`` or time limit).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 #: Extra attempts Dask makes when the task function itself raises (e.g. a worker that cannot
 #: import orbitsim). Run failures never raise (they are returned as rows), and a *killed* worker's
@@ -61,6 +67,7 @@ class SweepOutcome:
     resumed: int = 0
     interrupted: bool = False
     files: list[Path] = field(default_factory=list)
+    signum: int = signal.SIGINT  # the signal that interrupted it
 
     @property
     def counts(self) -> Counter[str]:
@@ -69,38 +76,67 @@ class SweepOutcome:
 
 
 class SweepInterrupted(KeyboardInterrupt):
-    """Ctrl-C stopped the sweep; ``outcome`` is what was written (its rows say what finished)."""
+    """Ctrl-C or SIGTERM stopped the sweep; ``outcome`` is what was written (its rows say what finished)."""
 
     def __init__(self, outcome: SweepOutcome) -> None:
         super().__init__("the sweep was interrupted")
         self.outcome = outcome
 
 
+class SweepSignal(KeyboardInterrupt):
+    """SIGINT or SIGTERM stopped the sweep (``signum`` says which); handled like Ctrl-C."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
 @contextlib.contextmanager
 def interrupt_once() -> Iterator[None]:
-    """Within the block the first Ctrl-C raises KeyboardInterrupt and later ones are ignored.
+    """Within the block the first Ctrl-C or SIGTERM raises :class:`SweepSignal` (a KeyboardInterrupt)
+    and later ones are ignored.
 
-    What follows the first Ctrl-C is the sweep's shutdown: cancel, close the cluster, write the
+    What follows the first signal is the sweep's shutdown: cancel, close the cluster, write the
     summary. A second Ctrl-C used to break it halfway (the cluster left for the interpreter's exit
-    to close, with tracebacks; no summary). The shutdown is bounded by Dask's own timeouts (a worker
-    that does not stop within seconds is killed), so ignoring it costs a few seconds at most.
-    Only in the main thread, and only over Python's default handler: a caller's handler is left
-    alone. The default handler is back when the block ends.
+    to close, with tracebacks; no summary), and SIGTERM, which ``timeout`` and Slurm send, killed the
+    driver outright: no summary, the runs' lock files left behind, the cluster's semaphores leaked.
+    The shutdown is bounded by Dask's own timeouts (a worker that does not stop within seconds is
+    killed), so ignoring the later signals costs a few seconds at most. Only in the main thread,
+    and only over Python's default handlers: a caller's handler is left alone. The previous
+    handlers are back when the block ends.
     """
+    defaults = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
     if threading.current_thread() is not threading.main_thread() or \
             signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield
         return
+    ours = [signum for signum in STOP_SIGNALS if signal.getsignal(signum) is defaults[signum]]
 
     def first(signum: int, frame: Any) -> None:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        raise KeyboardInterrupt
+        for each in ours:
+            signal.signal(each, signal.SIG_IGN)
+        raise SweepSignal(signum)
 
-    signal.signal(signal.SIGINT, first)
+    for signum in ours:
+        signal.signal(signum, first)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        for signum in ours:
+            signal.signal(signum, defaults[signum])
+
+
+def clear_abandoned(outdir: Path, cases: list[Case]) -> int:
+    """Remove the lock files, and the ``.tmp`` beside them, that runs of ``cases`` left when they
+    were killed; returns how many. A lock whose holder is alive (its ``flock`` is held, as by a run
+    still going on another worker) is left alone (:func:`orbitsim.io.lock.clear_abandoned_lock`).
+
+    Without this, a case whose run completed but was killed before it removed its lock, or whose
+    trace a rerun reuses, kept the stale lock for good.
+    """
+    from orbitsim.io.lock import clear_abandoned_lock
+
+    return sum(clear_abandoned_lock(trace_path_for(outdir, case)) for case in cases)
 
 
 def trace_path_for(outdir: Path, case: Case) -> Path:
@@ -188,9 +224,9 @@ def run_sweep(
     Raises
     ------
     SweepInterrupted
-        On Ctrl-C, after the cluster is shut down and the summary is written: every run that
-        finished (during the shutdown too) is in it, the others are ``not run``. A lost cluster
-        writes the same summary and its error goes on.
+        On Ctrl-C or SIGTERM (``outcome.signum`` says which), after the cluster is shut down and
+        the summary is written: every run that finished (during the shutdown too) is in it, the
+        others are ``not run``. A lost cluster writes the same summary and its error goes on.
     orbitsim.batch.cluster.ClusterError
         When the cluster cannot be started or reached, or a worker lacks this orbitsim; nothing
         has been written then.
@@ -198,6 +234,7 @@ def run_sweep(
     from orbitsim.batch.cluster import ClusterError
 
     outdir = Path(outdir).resolve()
+    clear_abandoned(outdir, sweep.cases)  # what a killed sweep left: its runs' processes are gone
     rows: dict[int, dict[str, Any]] = {case.index: _invalid_row(case) for case in sweep.invalid}
     pending: list[Case] = []
     earlier = _previous_workers(outdir) if resume else {}
@@ -217,8 +254,10 @@ def run_sweep(
                 on_start(0, outcome.resumed, "nothing to run")
         except ClusterError:
             raise  # raised before anything was submitted: there is nothing to summarise
-        except BaseException as exc:  # Ctrl-C, or the cluster went away: keep a summary of what finished
+        except BaseException as exc:  # a signal, or the cluster went away: keep a summary of what finished
             outcome.interrupted = isinstance(exc, KeyboardInterrupt)
+            outcome.signum = getattr(exc, "signum", signal.SIGINT)
+            clear_abandoned(outdir, pending)  # the cluster is closed: the runs it killed left their locks
             _finish(outcome, rows, [c for c in pending if _identity(trace_path_for(outdir, c)) != before[c.index]])
             if outcome.interrupted:
                 raise SweepInterrupted(outcome) from None

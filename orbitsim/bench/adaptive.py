@@ -53,8 +53,11 @@ class OrbitsimIAS15:
         softening = c.softening if s.softening is None else s.softening
         settings = {"epsilon": c.epsilon, "first_dt": s.dt or c.first_dt, "t_end": t_end}
         # dt is the output grid of an adaptive scheme: one interval, sampled at 0 and t_end only.
+        from orbitsim._jit import set_num_threads
+
+        # Numba's count (c.threads, else NUMBA_NUM_THREADS): a benchmark does not measure the load first.
         sim = Simulation(s.masses.copy(), s.positions.copy(), s.velocities.copy(), "ias15", t_end, s.G,
-                         softening, threads=c.threads, settings=settings)
+                         softening, threads=set_num_threads(c.threads), settings=settings)
         self.threads_used = sim.threads_used
         return sim
 

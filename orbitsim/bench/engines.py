@@ -79,7 +79,7 @@ class OrbitsimStepper:
         self._threads()
         self.sim = Simulation(s.masses.copy(), s.positions.copy(), s.velocities.copy(), c.integrator,
                               s.dt or c.dt, s.G, c.softening if s.softening is None else s.softening,
-                              threads=c.threads)
+                              threads=self.threads_used)  # the count set above, not orbitsim.cores' choice
         self._advance(1)
 
     def _advance(self, steps: int) -> None:

@@ -61,11 +61,19 @@ class Continuation:
 
 @dataclasses.dataclass
 class TraceState:
-    """A trace's root attributes, sample count and final state (None when it has none)."""
+    """A trace's root attributes, sample count and final state (None when it has none); a large
+    scenario's bodies, stored beside its ``scenario`` text (None when the text is whole)."""
 
     attrs: dict[str, Any]
     n_samples: int
     checkpoint: Checkpoint | None
+    scenario_bodies: dict[str, Any] | None = None
+
+    def stored_scenario(self, where: Path, sha256: str | None = None, source: str = "") -> Scenario:
+        """The scenario the trace stores (see :func:`stored_scenario`); ``sha256`` defaults to the trace's."""
+        text = str(self.attrs.get("scenario", ""))
+        return stored_scenario(text, str(self.attrs.get("scenario_sha256", "")) if sha256 is None else sha256, where,
+                               source, self.scenario_bodies)
 
 
 def resolve_output(path: str | os.PathLike) -> Path:
@@ -85,6 +93,7 @@ def read_trace_state(path: Path) -> TraceState:
     TraceError
         If the file is missing, foreign or damaged (:class:`CheckpointError` for its group).
     """
+    from orbitsim.io.stored_scenario import read_scenario_bodies
     from orbitsim.io.trace import TraceError, open_trace
 
     with open_trace(path) as f:
@@ -92,26 +101,30 @@ def read_trace_state(path: Path) -> TraceState:
             attrs = {k: (v.decode() if isinstance(v, bytes) else v.item() if hasattr(v, "item") else v)
                      for k, v in f.attrs.items()}
             n_samples = int(f["time"].shape[0])
+            bodies = read_scenario_bodies(f)
             group = f.get("checkpoint")
             ckpt = None
             if group is not None:
-                ckpt = read_checkpoint_group(group, f"{path} (checkpoint)", scenario=str(attrs.get("scenario", "")))
+                ckpt = read_checkpoint_group(group, f"{path} (checkpoint)", scenario=str(attrs.get("scenario", "")),
+                                             scenario_bodies=bodies)
         except (KeyError, OSError) as err:
             raise TraceError(f"{path}: damaged trace ({err})") from None
     if ckpt is not None and (ckpt.samples_written > n_samples or ckpt.scenario_sha256 != attrs.get("scenario_sha256")):
         raise CheckpointError(f"{path}: damaged trace (its checkpoint does not fit its samples or scenario)")
-    return TraceState(attrs=attrs, n_samples=n_samples, checkpoint=ckpt)
+    return TraceState(attrs=attrs, n_samples=n_samples, checkpoint=ckpt, scenario_bodies=bodies)
 
 
-def stored_scenario(text: str, sha256: str, where: Path, source: str = "") -> Scenario:
+def stored_scenario(text: str, sha256: str, where: Path, source: str = "",
+                    bodies: dict[str, Any] | None = None) -> Scenario:
     """The scenario a checkpoint or trace stores, checked against its SHA-256; ``source`` is where
-    it first came from (kept in the continued trace's ``scenario_source``)."""
-    from orbitsim.scenario import ScenarioError, scenario_from_dict
-    from orbitsim.scenario.yamlio import parse_yaml
+    it first came from (kept in the continued trace's ``scenario_source``); ``bodies``, a large
+    scenario's rows stored beside its text (:mod:`orbitsim.io.stored_scenario`)."""
+    from orbitsim.scenario import ScenarioError
+    from orbitsim.scenario.loader import scenario_from_stored
 
     label = f"{where} (stored scenario)"
     try:
-        scenario = scenario_from_dict(parse_yaml(text, label)[0], source=label)
+        scenario = scenario_from_stored(text, bodies, source=label)
     except ScenarioError as err:
         raise CheckpointError(f"{where}: damaged stored scenario ({err})") from None
     if scenario.sha256 != sha256:
@@ -236,7 +249,8 @@ def _from_checkpoint_file(output: Path, trace: TraceState | None, foreign: str, 
         check_side_files(output, force=True)  # refuses if a live process holds the journal
         remove_side_files(output)
         return Continuation(output, note=_complete_note(output, trace))
-    stored = stored_scenario(ckpt.scenario, ckpt.scenario_sha256, checkpoint_path(output), ckpt.scenario_source)
+    stored = stored_scenario(ckpt.scenario, ckpt.scenario_sha256, checkpoint_path(output), ckpt.scenario_source,
+                             ckpt.scenario_bodies)
     _check_same(stored, output, scenario, integrator)
     if output.exists() and not (same_run or ckpt.force):
         why = f" ({foreign})" if foreign else ""
@@ -268,7 +282,7 @@ def _check_complete(output: Path, trace: TraceState, scenario: Scenario | None, 
     if not text:
         raise CheckpointError(f"{output}: the trace stores no scenario to check SCENARIO or --integrator against "
                               "(written by an older orbitsim)")
-    stored = stored_scenario(str(text), str(trace.attrs.get("scenario_sha256", "")), output)
+    stored = trace.stored_scenario(output)
     _check_same(stored, output, scenario, integrator)
 
 
@@ -287,17 +301,17 @@ def _from_trace(output: Path, trace: TraceState, scenario: Scenario | None, inte
     if trace.checkpoint is None:
         raise CheckpointError(f"{output}: not resumable: the trace holds no checkpoint state (the run stopped before "
                               "its first step, or was written by an older orbitsim); run it again")
-    stored = stored_scenario(str(trace.attrs["scenario"]), trace.checkpoint.scenario_sha256, output,
-                             str(trace.attrs.get("scenario_source", "")))
+    stored = trace.stored_scenario(output, trace.checkpoint.scenario_sha256,
+                                   str(trace.attrs.get("scenario_source", "")))
     _check_same(stored, output, scenario, integrator)
     check_side_files(output, force=True)
     start = RunStart(trace.checkpoint, source_trace=output, overwrite=True, resumes=trace.checkpoint.resumes + 1)
     return Continuation(output, stored, start)
 
 
-def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_end: float | None = None,
+def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_end: float | str | None = None,
                       output: str | os.PathLike | None = None, integrator: str | None = None,
-                      scenario: Scenario | None = None, force: bool = False, dt: float | None = None,
+                      scenario: Scenario | None = None, force: bool = False, dt: float | str | None = None,
                       backward: bool = False) -> Continuation:
     """How to extend the complete run in ``source`` by ``steps`` more steps, or to ``t_end``.
 
@@ -307,6 +321,7 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
     then replaced, atomically, once the extension has finished; another existing file needs
     ``force``. Another ``integrator`` or ``dt`` (``backward``: dt = -|dt|) continues the final state
     with that scheme and step, and the trace records the change (:mod:`orbitsim.checkpoint.switch`).
+    ``t_end`` and ``dt`` may be times with a unit (``"100 yr"``), converted into the stored scenario's units.
 
     Raises
     ------
@@ -326,7 +341,23 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
         return _plan_extension(src, dst, steps, t_end, (integrator, dt, backward), scenario, force)
 
 
-def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None, change: tuple[Any, ...],
+def _option_times(stored: Scenario, t_end: float | str | None,
+                  change: tuple[Any, ...]) -> tuple[float | None, tuple[Any, ...]]:
+    """``--t-end`` and ``--dt`` given with a unit (``"100 yr"``) in the stored scenario's units."""
+    from orbitsim.scenario import ScenarioError
+    from orbitsim.scenario.quantities import scenario_time
+
+    integrator, dt, backward = change
+    converted = []
+    for option, value in (("--t-end", t_end), ("--dt", dt)):
+        try:
+            converted.append(scenario_time(value, stored.units, stored.G, option) if isinstance(value, str) else value)
+        except ScenarioError as err:
+            raise CheckpointError(f"{option} {value}: {err.reason}") from None
+    return converted[0], (integrator, converted[1], backward)
+
+
+def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | str | None, change: tuple[Any, ...],
                     scenario: Scenario | None, force: bool) -> Continuation:
     from orbitsim.checkpoint.switch import plan_switch, resolve_request
 
@@ -339,9 +370,9 @@ def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | None
     if trace.checkpoint is None:
         raise CheckpointError(f"{src}: holds no final state (written by an older orbitsim), so it cannot be extended "
                               "bit for bit; run the longer scenario instead")
-    stored = stored_scenario(str(trace.attrs["scenario"]), trace.checkpoint.scenario_sha256, src,
-                             str(trace.attrs.get("scenario_source", "")))
+    stored = trace.stored_scenario(src, trace.checkpoint.scenario_sha256, str(trace.attrs.get("scenario_source", "")))
     _check_same(stored, src, scenario, None, ignore=("steps",))
+    t_end, change = _option_times(stored, t_end, change)
     if trace.checkpoint.steps_done != stored.steps:
         raise CheckpointError(f"{src}: damaged trace (final state at step {trace.checkpoint.steps_done}, the run "
                               f"asked for {stored.steps})")

@@ -56,10 +56,12 @@ class Checkpointer:
     def build(self, loop: Any) -> Checkpoint:
         """A checkpoint of the loop's current state (which must agree with its samples)."""
         sc = self.scenario
+        text, bodies = sc.stored_form()  # built once per run: a large scenario's rows are arrays
         return Checkpoint(
             state=capture_state(loop.sim), steps_requested=sc.steps, samples_written=self.sink.samples_written,
             last_sample_step=loop.last_step if loop.samples else -1, integrator=sc.integrator,
-            scenario_sha256=sc.sha256, scenario=sc.to_yaml(), scenario_name=sc.name, scenario_source=sc.source,
+            scenario_sha256=sc.sha256, scenario=text, scenario_bodies=bodies, scenario_name=sc.name,
+            scenario_source=sc.source,
             resumes=self.resumes, force=self.force, E0=math.nan if loop.e0 is None else loop.e0,
             energy_scale=loop.scale,
             max_abs_energy_error=loop.max_err if loop.samples else math.nan, last_sample_time=loop.last_time,

@@ -186,12 +186,14 @@ def scenario_series(scenario: Scenario) -> tuple[dict[str, tuple[int, ...]], dic
 
 def add_checkpoint_group(writer: TraceWriter, ckpt: Checkpoint) -> None:
     """Give the trace its ``checkpoint`` group: built in memory, copied in by the writer (see
-    :mod:`orbitsim.io.h5safe`). The scenario is in the trace's root attributes, and there is no journal."""
+    :mod:`orbitsim.io.h5safe`). The scenario is in the trace's root (its attributes, and a large one's
+    ``scenario_bodies``), and there is no journal."""
     from orbitsim.io.h5safe import in_memory
 
     with in_memory() as memory:
         group = memory.create_group("checkpoint")
-        write_checkpoint_group(group, dataclasses.replace(ckpt, scenario="", journal_bytes=0, journal_crc32=0))
+        write_checkpoint_group(group, dataclasses.replace(ckpt, scenario="", scenario_bodies=None, journal_bytes=0,
+                                                          journal_crc32=0))
         writer.copy_group("checkpoint", group)
 
 
@@ -238,7 +240,8 @@ def open_sink(scenario: Scenario, output: Path, attrs: dict[str, Any], *, overwr
     series, groups = scenario_series(scenario)
     trace_args: dict[str, Any] = {"attrs": attrs, "names": list(scenario.names), "masses": scenario.masses,
                                   "n_bodies": scenario.n_bodies, "record_positions": bool(scenario.record_positions),
-                                  "extra_series": series, "group_attrs": groups}
+                                  "extra_series": series, "group_attrs": groups,
+                                  "scenario_bodies": scenario.stored_form()[1]}
     sink: StreamSink | JournalSink
     if start is not None and start.journal is not None:
         return JournalSink(output, start.journal, trace_args, overwrite)

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
+import signal
 import sys
 from typing import Any
 
 import click
 
 from orbitsim.cli.errors import EXIT_FAILURE, EXIT_USAGE, fail, reports_errors
-
-#: Exit status after Ctrl-C (the finished runs are kept; rerunning the command resumes).
-EXIT_INTERRUPTED = 130
 
 
 @click.command("batch")
@@ -46,8 +44,9 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
     an event the scenario asked to halt on: all are results), 1 when a run
     failed or, with --skip-invalid, a case was invalid (the errors are in the
     summary), 2 for an invalid sweep or an unreachable cluster, 130 after
-    Ctrl-C (the summary lists what finished; run the same command again to
-    finish the sweep).
+    Ctrl-C and 143 after SIGTERM (`timeout`, Slurm): the summary lists what
+    finished, the killed runs' lock files are removed; run the same command
+    again to finish the sweep.
 
     The summary has a column per kind of event (encounters, collisions,
     escapes, unresolved) read from each trace's events table.
@@ -81,7 +80,9 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
             fail(str(err), EXIT_USAGE)
         except KeyboardInterrupt as exc:
             bar.close()
-            fail(_interrupted(exc.outcome if isinstance(exc, SweepInterrupted) else None), EXIT_INTERRUPTED)
+            outcome = exc.outcome if isinstance(exc, SweepInterrupted) else None
+            signum = outcome.signum if outcome is not None else getattr(exc, "signum", signal.SIGINT)
+            fail(_interrupted(outcome, signum), 128 + signum)  # 130 after Ctrl-C, 143 after SIGTERM
         bar.close()
     click.echo(format_table(outcome.rows, sweep.params))
     counts = outcome.counts
@@ -95,16 +96,17 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
         fail(f"{' and '.join(problems)}; the errors are in the summary", EXIT_FAILURE)
 
 
-def _interrupted(outcome: Any) -> str:
-    """The one line after Ctrl-C: what finished, where it is, and how to finish the sweep."""
+def _interrupted(outcome: Any, signum: int = signal.SIGINT) -> str:
+    """The one line after Ctrl-C or SIGTERM: what finished, where it is, and how to finish the sweep."""
+    what = "interrupted" if signum == signal.SIGINT else f"interrupted by {signal.Signals(signum).name}"
     if outcome is None:  # a bare KeyboardInterrupt: it came before anything was submitted
-        return "interrupted before any run started; run the same command again to start the sweep"
+        return f"{what} before any run started; run the same command again to start the sweep"
     counts = outcome.counts
     done = counts["complete"] + counts["diverged"] + counts["halted"] + counts["failed"]
     where = f"traces in {outcome.outdir / 'runs'}, summary in {outcome.files[0]}"
     if not counts["not run"]:
-        return f"interrupted, but all {done} run(s) had finished; {where}"
-    return (f"interrupted; {done} of {done + counts['not run']} run(s) finished, {counts['not run']} not run; "
+        return f"{what}, but all {done} run(s) had finished; {where}"
+    return (f"{what}; {done} of {done + counts['not run']} run(s) finished, {counts['not run']} not run; "
             f"{where}: run the same command again to finish the sweep")
 
 

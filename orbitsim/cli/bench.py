@@ -30,7 +30,7 @@ def _config_dir() -> Path:
                                       "Example: -o out/bench")
 @click.option("--group", "groups", multiple=True, metavar="NAME",
               help="Run only this group of the matrix (repeatable). Example: --group trace")
-@threads_option()
+@threads_option(free_cores_default=False)
 @click.option("--no-plots", is_flag=True, help="Skip the figures. Example: --no-plots")
 @click.option("-q", "--quiet", is_flag=True, help="No progress lines; errors only. Example: -q")
 @reports_errors

@@ -20,17 +20,24 @@ def command() -> None:
 
 @command.command("info")
 def info() -> None:
-    """Print the cache directory of this orbitsim build and its size.
+    """Print the cache directory of this orbitsim build and its size, and the root of every build's
+    (set by ORBITSIM_CACHE_DIR, else NUMBA_CACHE_DIR/orbitsim, else ~/.cache/orbitsim/numba).
 
     Example: orbitsim cache info
     """
-    from orbitsim._jit import CACHE_DIR, cache_root
+    import numba
 
-    root = cache_root()
+    from orbitsim._jit import CACHE_DIR, CACHE_ROOT, CACHE_ROOT_FROM
+
+    root = CACHE_ROOT
     generations = sorted(p for p in root.iterdir() if p.is_dir()) if root.exists() else []
     size = sum(f.stat().st_size for f in CACHE_DIR.rglob("*") if f.is_file()) if CACHE_DIR.exists() else 0
-    click.echo(f"current: {CACHE_DIR} ({size / 2**20:.1f} MiB)")
-    click.echo(f"root:    {root} ({len(generations)} generation(s))")
+    used = numba.config.CACHE_DIR  # what Numba writes to: the current generation, checked here
+    current = CACHE_DIR if str(CACHE_DIR) == used else f"{used} (Numba's; orbitsim's would be {CACHE_DIR})"
+    chosen = {"ORBITSIM_CACHE_DIR": "from ORBITSIM_CACHE_DIR", "NUMBA_CACHE_DIR": "from NUMBA_CACHE_DIR",
+              "XDG_CACHE_HOME": "from XDG_CACHE_HOME", "default": "the default"}[CACHE_ROOT_FROM]
+    click.echo(f"current: {current} ({size / 2**20:.1f} MiB)")
+    click.echo(f"root:    {root} ({len(generations)} generation(s); {chosen})")
 
 
 @command.command("clear")
@@ -40,9 +47,9 @@ def clear(clear_all: bool) -> None:
 
     Example: orbitsim cache clear --all
     """
-    from orbitsim._jit import CACHE_DIR, cache_root
+    from orbitsim._jit import CACHE_DIR, CACHE_ROOT
 
-    root = cache_root()
+    root = CACHE_ROOT
     removed = 0
     if root.exists():
         for path in root.iterdir():

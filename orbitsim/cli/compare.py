@@ -8,7 +8,7 @@ from typing import Any
 import click
 
 from orbitsim.cli.errors import EXIT_FAILURE, EXIT_NOT_TESTABLE, fail, reports_errors, warn
-from orbitsim.cli.options import FINITE_POSITIVE, quiet_option, scenario_argument, threads_option
+from orbitsim.cli.options import POSITIVE_TIME, quiet_option, scenario_argument, threads_option
 
 #: From this many bodies on, a note warns that the IAS15 reference will be slow.
 SLOW_REFERENCE_N = 500
@@ -53,7 +53,7 @@ def prepare_outdir(outdir: Path, names: tuple[str, ...], force: bool) -> None:
     outdir.mkdir(parents=True, exist_ok=True)
 
 
-def load_with_overrides(scenario: str, dt: float | None, steps: int | None, t_end: float | None) -> Any:
+def load_with_overrides(scenario: str, dt: float | str | None, steps: int | None, t_end: float | str | None) -> Any:
     """Load a scenario and apply the --dt/--steps/--t-end overrides."""
     from orbitsim.scenario import load_scenario
 
@@ -64,13 +64,15 @@ def load_with_overrides(scenario: str, dt: float | None, steps: int | None, t_en
 
 def time_options(func: Any) -> Any:
     """--dt, --steps, --t-end (shared with ``orbitsim convergence``)."""
-    func = click.option("--t-end", type=FINITE_POSITIVE, default=None,
+    func = click.option("--t-end", type=POSITIVE_TIME, default=None,
                         help="End time instead of the scenario's (whole steps that fit; an adaptive scenario "
-                             "ends on it exactly). Example: --t-end 100")(func)
+                             "ends on it exactly), a number or a time with a unit as in the file (\"100 yr\"). "
+                             "Example: --t-end 100")(func)
     func = click.option("--steps", type=click.IntRange(min=1), default=None,
                         help="Number of steps instead of the scenario's. Example: --steps 5000")(func)
-    return click.option("--dt", type=FINITE_POSITIVE, default=None,
-                        help="Timestep instead of the scenario's. Example: --dt 0.005")(func)
+    return click.option("--dt", type=POSITIVE_TIME, default=None,
+                        help="Timestep instead of the scenario's, a number or a time with a unit as in the file "
+                             "(\"1 day\"). Example: --dt 0.005")(func)
 
 
 @click.command("compare")
@@ -100,8 +102,8 @@ def time_options(func: Any) -> Any:
 @click.pass_context
 @reports_errors
 def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | None,
-            rebound_schemes: str | None, reference: str, pairs: tuple[str, ...], dt: float | None,
-            steps: int | None, t_end: float | None, threads: int | None, force: bool, quiet: bool) -> None:
+            rebound_schemes: str | None, reference: str, pairs: tuple[str, ...], dt: float | str | None,
+            steps: int | None, t_end: float | str | None, threads: int | None, force: bool, quiet: bool) -> None:
     """Run SCENARIO in orbitsim and in REBOUND and cross-check them.
 
     Every run starts from the same state with the same G, softening, dt and sample steps. orbitsim's
@@ -142,15 +144,25 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
       orbitsim compare figure_eight -o fig8/ --rebound leapfrog:4,leapfrog:6,saba:10_6_4
       orbitsim compare pythagorean -o pyth/ --reference orbitsim
     """
-    from orbitsim.analysis.compare import default_integrators, default_rebound, run_compare
+    from orbitsim.analysis.compare import (
+        default_candidates,
+        default_integrators,
+        default_rebound,
+        defaults_left_out,
+        run_compare,
+    )
     from orbitsim.analysis.compare_ias15 import fixed_step_plan, output_grid
     from orbitsim.analysis.compare_output import write_compare_outputs
     from orbitsim.reference.bridge import parse_rebound_scheme
     from orbitsim.reference.pairs import parse_pair
 
     sc = load_with_overrides(scenario, dt, steps, t_end)
+    notes = []
     try:
         names = split_list(integrators) or default_integrators(sc)
+        if not integrators:
+            notes = [f"{name} is not among the default integrators: {why}"
+                     for name, why in defaults_left_out(sc, default_candidates(sc))]
         schemes = ([parse_rebound_scheme(s) for s in split_list(rebound_schemes)] if rebound_schemes
                    else default_rebound(names, sc.masses, whfast=not sc.adaptive))
         extra = [parse_pair(p) for p in pairs]
@@ -170,7 +182,7 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
         warn(f"{sc.n_bodies} bodies: each IAS15 reference (orbitsim's and REBOUND's) costs several O(N^2) force "
              "evaluations per adaptive step and will dominate the run time (plummer_1k: ~0.2 s per IAS15 step)")
     result = run_compare(sc, integrators=names, rebound=schemes, extra_pairs=extra, threads=threads, progress=say,
-                         reference=reference)
+                         reference=reference, notes=notes)
     paths = write_compare_outputs(result, outdir, command_line(ctx))
     if result.reference_problem:
         say(f"  WARNING  reference unreliable: {result.reference_problem}")

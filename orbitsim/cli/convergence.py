@@ -7,8 +7,8 @@ from pathlib import Path
 import click
 
 from orbitsim.cli.compare import command_line, prepare_outdir, split_list
-from orbitsim.cli.errors import EXIT_FAILURE, fail, reports_errors
-from orbitsim.cli.options import FINITE_POSITIVE, quiet_option, scenario_argument
+from orbitsim.cli.errors import EXIT_FAILURE, EXIT_NOT_TESTABLE, fail, reports_errors
+from orbitsim.cli.options import FINITE_POSITIVE, POSITIVE_TIME, quiet_option, scenario_argument
 
 OUTPUT_FILES = ("summary.json", "report.md", "report.html", "convergence.png", "work_precision.png")
 
@@ -36,12 +36,14 @@ def parse_dts(text: str | None) -> list[float] | None:
                    "the orbitsim integrators, plus whfast when body 0 dominates; 'none' for none). "
                    "Example: --rebound leapfrog:4,whfast")
 @click.option("--dts", default=None, metavar="DT1,DT2,...",
-              help="The dt ladder (default: the scenario's dt times 4, 2, 1, 1/2, 1/4, 1/8). "
+              help="The dt ladder, run as given (default: the scenario's dt times 4, 2, 1, 1/2, 1/4, 1/8, "
+                   "extended per integrator until it reaches that integrator's asymptotic range). "
                    "Example: --dts 0.004,0.002,0.001,0.0005")
-@click.option("--t-end", type=FINITE_POSITIVE, default=None,
+@click.option("--t-end", type=POSITIVE_TIME, default=None,
               help="End time at which errors are measured, on the scenario's clock like its t_end "
-                   "(default: the scenario's end time). Prefer one that is not a whole number of periods "
-                   "after t_start. Example: --t-end 4.4")
+                   "(default: the scenario's end time), a number or a time with a unit as in the file "
+                   "(\"100 yr\"). Prefer one that is not a whole number of periods after t_start. "
+                   "Example: --t-end 4.4")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="End time as a number of steps of the scenario's dt. Example: --steps 5000")
 @click.option("--check", is_flag=True,
@@ -54,15 +56,20 @@ def parse_dts(text: str | None) -> list[float] | None:
 @click.pass_context
 @reports_errors
 def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | None,
-            rebound_schemes: str | None, dts: str | None, t_end: float | None, steps: int | None,
+            rebound_schemes: str | None, dts: str | None, t_end: float | str | None, steps: int | None,
             check: bool, order_tolerance: float, force: bool, quiet: bool) -> None:
     """Error at the end time against a REBOUND IAS15 reference for a ladder of dt values.
 
     For every integrator and every dt the run takes the whole steps that fit in T and is compared
     with IAS15 stopped exactly at the same time. The order is the least-squares slope of
-    log(error) against log(dt), over the finest points above the round-off floor and below 10 %
-    error; the report shows it next to the declared order, a log-log error-vs-dt figure and a
-    work-precision figure (error against wall time) with both codes on one chart.
+    log(error) against log(dt) over the asymptotic range: rungs below 10 % error and above the
+    round-off floor whose local slopes agree. The default ladder is extended per integrator
+    until it reaches that range (finer or coarser, up to 4 rungs); where no order can be fitted
+    the report says why and which --dts to try. The report shows the order next to the declared
+    one, a log-log error-vs-dt figure and a work-precision figure (error against wall time) with
+    both codes on one chart. The scenario's forces are applied in both codes (REBOUND through
+    REBOUNDx); an integrator that cannot apply them is left out of the defaults (named: exit 2),
+    and forces REBOUND's IAS15 reference cannot carry end the command with exit 5.
 
     \b
     Examples:
@@ -70,16 +77,27 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
       orbitsim convergence two_body_eccentric -o conv/ --integrators verlet,rk4,leapfrog4 \\
           --dts 0.002,0.001,0.0005,0.00025 --t-end 4.4 --check
     """
-    from orbitsim.analysis.compare import default_rebound
+    from orbitsim.analysis.compare import default_rebound, settings_for
     from orbitsim.analysis.convergence import ladder, run_convergence
     from orbitsim.analysis.convergence_output import write_convergence_outputs
     from orbitsim.integrators.registry import INTEGRATORS, canonical_name
     from orbitsim.reference.bridge import parse_rebound_scheme
+    from orbitsim.reference.force_pairing import orbitsim_refusal, rebound_refusal
+    from orbitsim.reference.sampling import REFERENCE_SCHEME
     from orbitsim.scenario import load_scenario
+    from orbitsim.scenario_simulation import scenario_forces
 
     if steps is not None and t_end is not None:
         fail("give only one of --steps and --t-end")
     sc = load_scenario(scenario)
+    if isinstance(t_end, str):  # a time with a unit, in the scenario's units
+        from orbitsim.scenario import ScenarioError
+        from orbitsim.scenario.quantities import scenario_time
+
+        try:
+            t_end = scenario_time(t_end, sc.units, sc.G, "--t-end")
+        except ScenarioError as err:
+            fail(f"--t-end {t_end}: {err.reason}")
     # Rungs run forwards from t_start over the span T (a backwards scenario's ladder uses |dt|).
     end_time = t_end - sc.t_start if t_end is not None else (steps or sc.steps) * abs(sc.dt)
     if not end_time > 0:
@@ -95,13 +113,33 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
         rungs = ladder(abs(sc.dt), parse_dts(dts))
     except ValueError as err:
         fail(str(err))
+    forces = scenario_forces(sc)
+    why = rebound_refusal(forces, REFERENCE_SCHEME)
+    if why:
+        fail(f"{scenario}: not comparable: the IAS15 reference (REBOUND) cannot carry the forces: {why}",
+             EXIT_NOT_TESTABLE)
+    left_out = [(n, orbitsim_refusal(forces, n, settings_for(sc, n))) for n in names]
+    left_out += [(s.display, rebound_refusal(forces, s)) for s in schemes]
+    left_out = [(n, why) for n, why in left_out if why]
+    named = {n for n in names if integrators} | {s.display for s in schemes if rebound_schemes}
+    for name, why in left_out:
+        if name in named:
+            fail(f"{scenario}: forces: {name} cannot apply them as the other code does: {why}")
+    skipped = {n for n, _ in left_out}
+    names = [n for n in names if n not in skipped]
+    schemes = [s for s in schemes if s.display not in skipped]
     if any(dt > end_time for dt in rungs):
         fail(f"every dt must be at most the end time T = {end_time:g}; got {max(rungs):g}")
     prepare_outdir(outdir, OUTPUT_FILES, force)
     say = (lambda _m: None) if quiet else click.echo
     span = f"T = {end_time:g}" + (f" from t_start = {sc.t_start:g}" if sc.t_start else "")
-    say(f"orbitsim convergence: {sc.name}, {span}, dt ladder {', '.join(f'{d:g}' for d in rungs)}")
-    result = run_convergence(sc, integrators=names, rebound=schemes, dts=rungs, end_time=end_time, progress=say)
+    say(f"orbitsim convergence: {sc.name}, {span}, dt ladder {', '.join(f'{d:g}' for d in rungs)}"
+        + ("" if dts else " (extended per integrator to its asymptotic range)"))
+    for name, why in left_out:
+        say(f"  note: {name} left out: {why}")
+    result = run_convergence(sc, integrators=names, rebound=schemes, dts=rungs, end_time=end_time, progress=say,
+                             extend=not dts)
+    result.notes = [f"{name} left out: {why}" for name, why in left_out]
     paths = write_convergence_outputs(result, outdir, command_line(ctx), order_tolerance)
     for s in result.series:
         fitted = f"{s.fitted_order:5.2f}" if s.fitted_order == s.fitted_order else "  n/a"
@@ -109,4 +147,4 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
     say(f"report: {paths['html']}")
     off = result.check(order_tolerance)
     if check and off:
-        fail("fitted order off the declared order: " + "; ".join(off), EXIT_FAILURE)
+        fail("fitted order missing or off the declared order: " + "; ".join(off), EXIT_FAILURE)

@@ -35,7 +35,10 @@ def command(trace: str, fmt: str, output: str, sample: int, positions: bool, for
     x, v and m bit for bit, with G, t, dt and the matching REBOUND integrator. The scenario has the
     same integrator, settings, dt, units and sampling, its bodies are the sample's state (floats
     written exactly) and it runs the steps left to the original end: for a fixed-dt integrator,
-    running it continues the original run bit for bit (its clock restarts at 0). Files are written
+    running it continues the original run bit for bit (its t_start is the sample's time, so its clock
+    goes on from there). After a merge or removal (events:) both hold the bodies still in the run at
+    the sample, with their merged masses and radii, and say on stdout (and in the scenario's
+    description) who merged into whom; a sample between two removals is refused. Files are written
     under a temporary name and renamed once complete; an existing file is replaced only with --force.
 
     \b
@@ -56,9 +59,11 @@ def command(trace: str, fmt: str, output: str, sample: int, positions: bool, for
     if fmt == "csv":
         export.export_csv(trace, output, positions=positions)
         return
-    note = (export.export_rebound if fmt == "rebound" else export.export_scenario)(trace, output, sample)
-    if note:
-        warn(note)
+    notes = (export.export_rebound if fmt == "rebound" else export.export_scenario)(trace, output, sample)
+    if notes.departed:  # after a merge or removal: who left, and that the export holds the bodies still in the run
+        click.echo(notes.departed)
+    if notes.note:
+        warn(notes.note)
 
 
 def _check_target(target: Path, trace: str, force: bool) -> None:

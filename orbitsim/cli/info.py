@@ -9,15 +9,28 @@ from typing import Any
 import click
 
 from orbitsim.cli.errors import reports_errors
-from orbitsim.cli.options import trace_argument
+from orbitsim.cli.options import OneLineUsageError, trace_argument
 
 #: Events listed one per line; the rest are counted ("... N more"): a run can log thousands of
-#: encounters, and `info` is a glance, the whole table is in the trace.
+#: encounters, and `info` is a glance; `info --events` lists them all.
 SHOWN_EVENTS = 10
+#: ``--events KIND``: orbitsim.events.log.EVENT_KINDS, written out so that the CLI imports only click
+#: at start-up (a test checks that the two agree).
+EVENT_KIND_CHOICES = ("encounter", "collision", "escape", "unresolved", "lost")
 #: Attributes shown in the header; the rest are listed under "attributes".
 _HEADER = ("format", "format_version", "orbitsim_version", "status", "message", "scenario_name",
            "scenario_source", "scenario_sha256", "integrator", "integrator_settings", "dt", "steps_requested",
            "steps_done", "G", "softening", "units", "wall_time_s", "threads")
+
+
+class _EventKind(click.Choice):
+    """``--events [KIND]``; a trace's name where KIND goes (``info --events run.h5``) gets the fix."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if value in self.choices:
+            return value
+        raise OneLineUsageError(f"--events: {value!r} is not an event kind (all, {', '.join(EVENT_KIND_CHOICES)}); "
+                                "give the trace first: orbitsim info TRACE --events [KIND]")
 
 
 @click.command("info")
@@ -25,12 +38,17 @@ _HEADER = ("format", "format_version", "orbitsim_version", "status", "message", 
 @click.option("--scenario", "show_scenario", is_flag=True,
               help="Print only the fully resolved scenario stored in the trace, as YAML, to rerun it "
                    "exactly. Example: orbitsim info run.h5 --scenario > rerun.yaml")
+@click.option("--events", "events_kind", is_flag=False, flag_value="all", default=None, metavar="[KIND]",
+              type=_EventKind(["all", *EVENT_KIND_CHOICES]),
+              help="Print only the run's events, every one (info alone lists the first 10), or only those of "
+                   f"KIND ({', '.join(EVENT_KIND_CHOICES)}). Give it after the trace. "
+                   "Example: orbitsim info run.h5 --events collision")
 @reports_errors
-def command(trace: str, show_scenario: bool) -> None:
+def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
     """Show what is in TRACE.h5: status, run settings, samples, datasets and their shapes.
 
-    For a run with events: the count of each kind, the first 10 events, and
-    the bodies that left the run (merged or removed); for a run that recorded
+    For a run with events: the count of each kind, the first 10 events (--events lists them
+    all), and the bodies that left the run (merged or removed); for a run that recorded
     orbital elements, their primary and shape.
 
     Also its checkpoint: the state the run stopped in and whether `orbitsim resume` or
@@ -41,10 +59,16 @@ def command(trace: str, show_scenario: bool) -> None:
     Examples:
       orbitsim info two_body_circular.h5
       orbitsim info run.h5 --scenario > rerun.yaml && orbitsim run rerun.yaml -o rerun.h5
+      orbitsim info run.h5 --events collision
       orbitsim info long.h5.ckpt
     """
     from orbitsim.checkpoint.report import is_checkpoint_request
 
+    if events_kind is not None:
+        if show_scenario:
+            raise OneLineUsageError("--scenario and --events print different things; give one")
+        _list_events(trace, None if events_kind == "all" else events_kind)
+        return
     if is_checkpoint_request(trace):
         _checkpoint_info(trace, show_scenario)
         return
@@ -59,13 +83,15 @@ def command(trace: str, show_scenario: bool) -> None:
     summary = open_trace_summary(trace)
     attrs = summary["attrs"]
     if show_scenario:
-        click.echo(attrs.get("scenario", ""), nl=False)
+        click.echo(_whole_text(trace, attrs), nl=False)
         return
     sections = _event_lines(trace, summary["n_bodies"])  # read first: a damaged table is one line, nothing before
     click.echo(f"trace:    {summary['path']}")
     for key in _HEADER:
         if key in attrs and attrs[key] != "":
-            click.echo(f"  {key:<20} {_show(attrs[key], full=key == 'message')}")
+            # how the run's thread count was chosen (orbitsim.cores), beside it
+            why = f" ({attrs['threads_choice']})" if key == "threads" and attrs.get("threads_choice") else ""
+            click.echo(f"  {key:<20} {_show(attrs[key], full=key == 'message')}{why}")
     span = _time_range(trace, summary["n_samples"])
     if span and attrs.get("status") == "diverged":
         span += " (over the samples kept, the last finite ones; then the run diverged)"
@@ -79,10 +105,13 @@ def command(trace: str, show_scenario: bool) -> None:
     for name, shape in sorted(summary["shapes"].items()):
         click.echo(f"  {name:<20} {shape}")
     click.echo("attributes:")
-    rest = sorted(k for k in attrs if k not in _HEADER and k != "integrator_history")
+    rest = sorted(k for k in attrs if k not in _HEADER and k not in ("integrator_history", "threads_choice"))
     width = max((len(k) for k in rest), default=0)
     for key in rest:
-        value = f"<{len(attrs[key])} characters of YAML; see --scenario>" if key == "scenario" else _show(attrs[key])
+        value = _show(attrs[key])
+        if key == "scenario":
+            beside = ", the bodies in scenario_bodies/" if "scenario_bodies/names" in summary["shapes"] else ""
+            value = f"<{len(attrs[key])} characters of YAML{beside}; see --scenario>"
         click.echo(f"  {key:<{width}}  {value}")
     for line in trace_checkpoint_lines(trace, attrs):
         click.echo(line)
@@ -111,7 +140,7 @@ def _event_lines(path: str, n_bodies: int) -> list[str]:
         width = max((len(e.kind) for e in shown), default=0)
         lines += [f"  t = {format_time(e.time):<14} {e.kind:<{width}}  {e.details}" for e in shown]
         if total > len(shown):
-            lines.append(f"  ... {total - len(shown)} more (the trace's events table has them all)")
+            lines.append(f"  ... {total - len(shown)} more: orbitsim info {path} --events")
     if left is not None:
         lines.append(f"removed:  {len(left)} of {n_bodies} bodies left the run" if left else
                      f"removed:  none of the {n_bodies} bodies left the run")
@@ -121,6 +150,27 @@ def _event_lines(path: str, n_bodies: int) -> list[str]:
     return lines
 
 
+def _list_events(path: str, kind: str | None) -> None:
+    """``info --events [KIND]``: the count line, then every event (of ``kind``), one per line, in the
+    order they happened; read block by block, so a table of millions of rows prints in flat memory."""
+    import h5py
+
+    from orbitsim.analysis.trace_events import event_counts, format_time, iter_events
+    from orbitsim.io.trace import open_trace_summary
+
+    open_trace_summary(path)  # a missing, foreign or damaged file: the one line every command gives
+    with h5py.File(path, "r") as f:
+        counts = event_counts(f)
+        if counts is None:
+            raise OneLineUsageError(f"{path}: has no events table: the run had no events: section")
+        total = sum(counts.values())
+        head = f"events:   {total} (" + ", ".join(f"{k} {n}" for k, n in counts.items()) + ")"
+        click.echo(head if kind is None else f"{head}; {counts.get(kind, 0)} of kind {kind}:")
+        width = max((len(k) for k, n in counts.items() if n and kind in (None, k)), default=0)  # as info aligns
+        for event in iter_events(f, kind):
+            click.echo(f"  t = {format_time(event.time):<14} {event.kind:<{width}}  {event.details}")
+
+
 def _checkpoint_info(path: str, show_scenario: bool) -> None:
     """``info`` on a checkpoint: where the run stands, or (``--scenario``) its stored scenario."""
     from orbitsim.checkpoint.plan import resolve_output
@@ -128,10 +178,38 @@ def _checkpoint_info(path: str, show_scenario: bool) -> None:
     from orbitsim.io.checkpoint import checkpoint_path, read_checkpoint
 
     if show_scenario:
-        click.echo(read_checkpoint(checkpoint_path(resolve_output(path))).scenario, nl=False)
+        where = checkpoint_path(resolve_output(path))
+        ckpt = read_checkpoint(where)
+        if ckpt.scenario_bodies is None:
+            click.echo(ckpt.scenario, nl=False)
+            return
+        from orbitsim.checkpoint.plan import stored_scenario
+
+        click.echo(stored_scenario(ckpt.scenario, ckpt.scenario_sha256, where, bodies=ckpt.scenario_bodies).to_yaml(),
+                   nl=False)
         return
     for line in checkpoint_file_lines(path):
         click.echo(line)
+
+
+def _whole_text(trace: str, attrs: dict[str, Any]) -> str:
+    """The trace's resolved scenario as YAML: its ``scenario`` text, with a large scenario's bodies
+    (stored as datasets beside it, :mod:`orbitsim.io.stored_scenario`) written back in."""
+    from pathlib import Path
+
+    from orbitsim.checkpoint.plan import stored_scenario
+    from orbitsim.io.stored_scenario import read_scenario_bodies
+    from orbitsim.io.trace import TraceError, open_trace
+
+    with open_trace(trace) as f:
+        try:
+            bodies = read_scenario_bodies(f)
+        except (KeyError, OSError) as err:
+            raise TraceError(f"{trace}: damaged trace ({err})") from None
+    text = str(attrs.get("scenario", ""))
+    if bodies is None:
+        return text
+    return stored_scenario(text, str(attrs.get("scenario_sha256", "")), Path(trace), bodies=bodies).to_yaml()
 
 
 def _show(value: Any, full: bool = False) -> str:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
@@ -15,9 +16,9 @@ import click
 
 from orbitsim.cli.errors import EXIT_USAGE, one_line
 
-__all__ = ["FINITE_POSITIVE", "HDF5_SUFFIXES", "OneLineUsageError", "check_trace_output", "force_option",
-           "is_hdf5_name", "max_threads", "output_option", "quiet_option", "scenario_argument", "threads_option",
-           "trace_argument"]
+__all__ = ["FINITE_POSITIVE", "HDF5_SUFFIXES", "POSITIVE_TIME", "OneLineUsageError", "check_trace_output",
+           "force_option", "is_hdf5_name", "max_threads", "output_option", "quiet_option", "scenario_argument",
+           "threads_option", "trace_argument"]
 
 #: Suffixes an HDF5 file goes by (the HDF Group's list); a trace output must end in one of them.
 HDF5_SUFFIXES = (".h5", ".hdf5", ".hdf", ".he5")
@@ -53,6 +54,31 @@ class FinitePositiveFloat(click.ParamType):
 
 
 FINITE_POSITIVE = FinitePositiveFloat()
+
+
+class PositiveTime(click.ParamType):
+    """A time > 0: a number in the scenario's time unit (a float, as :data:`FINITE_POSITIVE` gives it) or a
+    number with a unit, ``"1 day"``, ``"10 yr"`` (kept as text: the scenario's units, known only once it
+    is loaded, convert it, as they convert the same text in the file)."""
+
+    name = "time"
+    _TEXT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z][A-Za-z ]*?)\s*$")
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float | str:
+        if isinstance(value, float):
+            return FINITE_POSITIVE.convert(value, param, ctx)
+        text = str(value)
+        match = self._TEXT.match(text)
+        if match is None:
+            return FINITE_POSITIVE.convert(value, param, ctx)  # a plain number, or its refusal
+        number = float(match.group(1))
+        option = param.opts[0] if param is not None and param.opts else "the value"
+        if not (math.isfinite(number) and number > 0.0):
+            raise OneLineUsageError(f"{option} {text.strip()}: must be a finite time > 0")
+        return f"{match.group(1)} {match.group(2)}"
+
+
+POSITIVE_TIME = PositiveTime()
 
 
 def max_threads() -> tuple[int, str]:
@@ -153,8 +179,11 @@ def quiet_option() -> Decorator:
                         help="Print nothing but errors (no progress bar, no summary). Example: -q")
 
 
-def threads_option() -> Decorator:
-    """--threads N: Numba threads."""
+def threads_option(*, free_cores_default: bool = True) -> Decorator:
+    """--threads N: Numba threads; by default one per core other processes leave free
+    (:mod:`orbitsim.cores`), or with ``free_cores_default=False`` (``bench``) all of them."""
+    default = ("default: one per core that other processes leave free now, at most NUMBA_NUM_THREADS or all "
+               "cores" if free_cores_default else "default and maximum: NUMBA_NUM_THREADS or all cores")
     return click.option("--threads", type=ThreadCount(), default=None,
-                        help="Threads for the force kernel (default and maximum: NUMBA_NUM_THREADS or all cores); "
-                             "results are bit-identical for any count. Example: --threads 2")
+                        help=f"Threads for the force kernel ({default}); results are bit-identical for any count. "
+                             "Example: --threads 2")

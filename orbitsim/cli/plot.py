@@ -39,26 +39,34 @@ MAX_LEGEND = 12
 @click.option("--view", type=click.Choice(["xy", "xz", "yz", "3d"]), default="xy", show_default=True,
               help="The orbit panel's projection: a coordinate plane, or a 3-D view, so inclined systems are "
                    "not squashed into x-y. Example: --view xz")
+@click.option("--events", "show_events", is_flag=True,
+              help="Mark the run's events (collisions, encounters, escapes, unresolved steps) as vertical lines "
+                   "on the |dE/E| panel, or with --elements on every element panel, one colour per kind; the run "
+                   "must have had an events: section. Example: --events")
 @force_option()
 @reports_errors
 def command(trace: str, output: str | None, elements: bool, resonance: str | None, pair: str | None,
-            view: str, force: bool) -> None:
+            view: str, show_events: bool, force: bool) -> None:
     """Plot TRACE.h5: orbits projected on x-y (or --view xz, yz, 3d), and |dE/E| against time on a log axis.
 
     With --elements: each body's a, e, inc, Omega, omega, f and M against time, about the
     primary the run recorded them for (heaviest body, Jacobi, or a named body).
+    With --events: the run's events marked on the |dE/E| (or element) panels.
 
     \b
     Examples:
       orbitsim plot two_body_circular.h5
       orbitsim plot run.h5 -o run.pdf --force
       orbitsim plot kozai.h5 --elements
+      orbitsim plot disc.h5 --elements --events
       orbitsim plot resonance_capture.h5 --resonance 2:1
     """
     from orbitsim.io.trace import open_trace_summary
 
     stem = Path(trace).stem
     spec = _check_resonance(resonance, pair, elements)
+    if show_events and spec:
+        raise OneLineUsageError("--events marks the |dE/E| and --elements figures; --resonance draws neither")
     suffix = "_elements.png" if elements else "_resonance.png" if spec else ".png"
     default = Path(trace).with_name(f"{stem}{suffix}")
     target = Path(output) if output is not None else default
@@ -68,25 +76,39 @@ def command(trace: str, output: str | None, elements: bool, resonance: str | Non
         from orbitsim.analysis.element_figure import check_elements
 
         check_elements(summary)  # no elements group: one line, before any drawing
+    events = None
+    if show_events:
+        from orbitsim.analysis.event_marks import read_event_times
+
+        events = read_event_times(trace)  # no events table: one line, before any drawing
     if target.exists() and not force:
         fail(f"{target}: figure already exists; use --force to overwrite it")
     if not target.parent.is_dir():
         fail(f"{target}: directory {target.parent} does not exist")
     if elements:
-        _plot_elements(trace, summary, target)
+        _plot_elements(trace, summary, target, events)
     elif spec:
         _plot_resonance(trace, summary, target, spec, pair)
     else:
-        _draw(_read(trace, summary), summary["attrs"], target, view)
-    click.echo(f"wrote {target}")
+        _draw(_read(trace, summary), summary["attrs"], target, view, events)
+    marked = "" if events is None else f" ({_marked(events)})"
+    click.echo(f"wrote {target}{marked}")
 
 
-def _plot_elements(trace: str, summary: dict[str, Any], target: Path) -> None:
+def _marked(events: dict[str, Any]) -> str:
+    """``2 collision, 13 encounter events marked`` or ``no events were logged``."""
+    if not events:
+        return "no events were logged"
+    return ", ".join(f"{t.size} {kind}" for kind, t in events.items()) + " events marked"
+
+
+def _plot_elements(trace: str, summary: dict[str, Any], target: Path, events: dict[str, Any] | None = None) -> None:
     from orbitsim.analysis.element_figure import draw_elements, read_elements
 
     data = read_elements(trace, summary, MAX_PLOT_SAMPLES, MAX_TRACKS)
     length, time_unit = _units(summary["attrs"])
-    draw_elements(data, target, _title(summary["attrs"], target, time_unit), length, time_unit, MAX_LEGEND)
+    draw_elements(data, target, _title(summary["attrs"], target, time_unit), length, time_unit, MAX_LEGEND,
+                  events)
 
 
 def _check_resonance(resonance: str | None, pair: str | None, elements: bool) -> tuple[int, int] | None:
@@ -170,7 +192,8 @@ def _units(attrs: dict[str, Any]) -> tuple[str, str]:
     return (system.length, system.time) if system else ("length", "time")
 
 
-def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path, view: str = "xy") -> None:
+def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path, view: str = "xy",
+          events: dict[str, Any] | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")  # files only: no display needed, and no GUI toolkit imported
@@ -182,6 +205,10 @@ def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path, view: str =
     ax_energy = fig.add_subplot(1, 2, 2)
     _draw_orbits(ax_orbit, data, length, view)
     _draw_energy(ax_energy, data, time_unit)
+    if events:
+        from orbitsim.analysis.event_marks import mark_events
+
+        mark_events(ax_energy, events)
     fig.suptitle(_title(attrs, target, time_unit))
     fig.savefig(target, dpi=120)
     plt.close(fig)
@@ -210,8 +237,13 @@ def _draw_orbits(ax: Any, data: dict[str, Any], length: str, view: str = "xy") -
         return
     names = data["names"]
     if pos.shape[0] == 1:  # many bodies: one snapshot
+        import numpy as np
+
         ax.plot(*(pos[0, :, a] for a in axes), ".", ms=1.5)
-        ax.set_title(f"positions of {pos.shape[1]} bodies at the last sample")
+        present = int(np.count_nonzero(np.all(np.isfinite(pos[0]), axis=1)))  # merged or removed: NaN rows
+        gone = pos.shape[1] - present
+        ax.set_title(f"positions of {present} bodies at the last sample"
+                     + (f" ({gone} of {pos.shape[1]} left the run)" if gone else ""))
     else:
         for i in range(pos.shape[1]):
             ax.plot(*(pos[:, i, a] for a in axes), lw=0.8, label=names[i] if i < MAX_LEGEND else None)

@@ -13,6 +13,7 @@ import click
 from orbitsim.cli.errors import fail, reports_errors, warn
 from orbitsim.cli.options import (
     FINITE_POSITIVE,
+    POSITIVE_TIME,
     check_trace_output,
     force_option,
     output_option,
@@ -41,24 +42,25 @@ _FIXED_BY_FROM = ("every", "interval", "positions")
 @click.option("--integrator", metavar="NAME", default=None,
               help="Override the integrator (a name or alias from `orbitsim list integrators`). "
                    "Example: --integrator leapfrog4")
-@click.option("--dt", type=FINITE_POSITIVE, default=None,
-              help="Override the timestep (> 0; --backward makes it negative). With a file that gives t_end the "
-                   "step count is re-derived; with steps it is kept. With --from, the run continues with this step "
-                   "from its final state. Example: --dt 0.001")
+@click.option("--dt", type=POSITIVE_TIME, default=None,
+              help="Override the timestep (> 0; --backward makes it negative), in the scenario's time unit or with a "
+                   "unit as in the file (\"1 day\"). With a file that gives t_end the step count is re-derived; with "
+                   "steps it is kept. With --from, the run continues with this step from its final state. "
+                   "Example: --dt 0.001")
 @click.option("--backward", is_flag=True, default=False,
               help="Run time backwards: dt becomes -|dt| and t_end -|t_end| (schemes that can step backwards: "
                    "`orbitsim list integrators`). With --from, the run continues backwards from its final state. "
                    "Example: --from out.h5 --backward --steps 1000")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="Override the number of whole steps (replaces t_end). Example: --steps 20000")
-@click.option("--t-end", "t_end", type=FINITE_POSITIVE, default=None,
-              help="Override the end time: the whole steps of dt that fit (replaces steps). "
-                   "Example: --t-end 100")
+@click.option("--t-end", "t_end", type=POSITIVE_TIME, default=None,
+              help="Override the end time: the whole steps of dt that fit (replaces steps); a number or a time "
+                   "with a unit, as in the file. Example: --t-end 100 or --t-end \"1000 yr\"")
 @click.option("--every", type=click.IntRange(min=1), default=None,
               help="Sample every K steps (replaces output.interval). Example: --every 100")
-@click.option("--interval", type=FINITE_POSITIVE, default=None,
-              help="Sample every T time units, on the last whole step not past each sample time "
-                   "(replaces output.every). Example: --interval 0.5")
+@click.option("--interval", type=POSITIVE_TIME, default=None,
+              help="Sample every T time units (or a time with a unit, \"10 yr\"), on the last whole step not past "
+                   "each sample time (replaces output.every). Example: --interval 0.5")
 @click.option("--positions/--no-positions", default=None,
               help="Record (or not) positions and velocities at every sample. Example: --no-positions")
 @click.option("--checkpoint-every", "checkpoint_every", type=click.IntRange(min=1), default=None,
@@ -76,8 +78,8 @@ _FIXED_BY_FROM = ("every", "interval", "positions")
 @force_option()
 @quiet_option()
 @reports_errors
-def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | None, backward: bool,
-            steps: int | None, t_end: float | None, every: int | None, interval: float | None,
+def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | str | None, backward: bool,
+            steps: int | None, t_end: float | str | None, every: int | None, interval: float | str | None,
             positions: bool | None, checkpoint_every: int | None, checkpoint_seconds: float | None,
             from_trace: str | None, threads: int | None, force: bool, quiet: bool) -> None:
     """Run SCENARIO (a YAML file or a bundled name) and write its HDF5 trace.
@@ -90,8 +92,10 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
     even a hard kill can be resumed; --from TRACE.h5 extends a complete run (SCENARIO optional).
     With an events: section the summary adds a line of what happened (close encounters,
     collisions, escapes, unresolved steps), and the trace holds them all.
-    A run expected to take more than an hour (timed on this machine, as `orbitsim validate`
-    prints it) is announced by a note before its first step.
+    A run expected to take more than an hour, or more than 10 s a step (timed on this machine, as
+    `orbitsim validate` prints it), is announced by a note before its first step. Without
+    --threads a run uses one thread per core that other processes leave free (`orbitsim info`
+    shows the choice).
 
     \b
     Exit codes: 0 complete, 2 bad input (or another process writes OUT), 3 diverged, 4 an I/O
@@ -130,7 +134,7 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
     execute(chosen, output, force=force, threads=threads, quiet=quiet)
 
 
-def _rebound_or_yaml(scenario: str, steps: int | None, t_end: float | None) -> Any:
+def _rebound_or_yaml(scenario: str, steps: int | None, t_end: float | str | None) -> Any:
     """``run sim.bin``: a REBOUND file (known by its first bytes) is a scenario of its own, run for
     --steps or --t-end with its integrator and dt; anything else is a YAML file or a bundled name."""
     from orbitsim.io.rebound_file import is_rebound_file
@@ -160,7 +164,7 @@ def execute(scenario: Any, output: Any, *, force: bool, threads: int | None, qui
 
 
 def _extend(source: str, scenario: str | None, output: str | None, change: dict[str, Any], steps: int | None,
-            t_end: float | None, checkpoints: dict[str, Any], threads: int | None, force: bool, quiet: bool,
+            t_end: float | str | None, checkpoints: dict[str, Any], threads: int | None, force: bool, quiet: bool,
             fixed: dict[str, Any]) -> None:
     """``run --from``: the stored scenario, longer, continued from the trace's final state (with the
     integrator, dt or direction ``change`` asks for: :mod:`orbitsim.checkpoint.switch`)."""
@@ -229,15 +233,9 @@ def _apply_overrides(scenario: Any, overrides: dict[str, Any]) -> Any:
 def _report(summary: Any, scenario: Any, quiet: bool) -> None:
     """Print the summary line; exit non-zero for a diverged or interrupted run."""
     if not quiet:
-        rate = rate_text(summary.steps_per_s)
         end = f"t = {summary.end_time:.10g}" if summary.samples else "no samples"
-        done = f"{summary.steps_done} of {summary.steps_requested} steps in {summary.wall_time_s:.3g} s ({rate})"
-        own = summary.scheme_counters
-        if own is not None and scenario.adaptive:  # its steps are its own; the grid is the output intervals
-            rate = rate_text(own["steps_accepted"] / summary.wall_time_s if summary.wall_time_s > 0 else math.inf)
-            done = (f"{summary.steps_done} of {summary.steps_requested} output intervals in {summary.wall_time_s:.3g}"
-                    f" s ({scenario.integrator}: {own['steps_accepted']:,} steps, {own['steps_rejected']:,} rejected,"
-                    f" {rate})")
+        done = _work_text(summary, scenario)
+        own = summary.scheme_counters_here()
         if own is not None and "redone" in own:  # a hybrid's encounters: how often it switched and redid a step
             ias15 = f", {own['full_ias15_steps']:,} IAS15 steps" if own.get("full_ias15_steps") else ""
             done += (f" ({scenario.integrator}: {own['redone']:,} steps redone, "
@@ -264,6 +262,29 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
         hint = f"; continue with `orbitsim resume {summary.output}`" if summary.resumable else ""
         fail(f"{summary.message}; the {summary.samples} samples taken are in {summary.output}{hint}",
              summary.exit_code)
+
+
+def _work_text(summary: Any, scenario: Any) -> str:
+    """What the run did, and at what rate: ``10000 of 10000 steps in 11.9 s (850 steps/s)``.
+
+    A continued run (``resume``, ``run --from``) gives the rate of the steps this process took, in
+    its own wall time: ``10100 of 10100 steps, 100 of them (from step 10000) in 0.05 s (2,000
+    steps/s)``. The earlier parts' steps and wall time (kept in the trace) would make it meaningless.
+    """
+    unit = "output intervals" if scenario.adaptive else "steps"  # an adaptive scheme's grid is the output
+    own = summary.scheme_counters_here()
+    wall = summary.wall_here_s
+    if own is not None and scenario.adaptive:  # its steps are its own; the grid is the output intervals
+        rate = rate_text(own["steps_accepted"] / wall if wall > 0 else math.inf)
+        pace = (f"({scenario.integrator}: {own['steps_accepted']:,} steps, {own['steps_rejected']:,} rejected, "
+                f"{rate})")
+    else:
+        pace = f"({rate_text(summary.steps_per_s)})"
+    done = f"{summary.steps_done} of {summary.steps_requested} {unit}"
+    if not summary.continued:
+        return f"{done} in {wall:.3g} s {pace}"
+    where = "output interval" if scenario.adaptive else "step"
+    return f"{done}, {summary.steps_here} of them (from {where} {summary.steps_before}) in {wall:.3g} s {pace}"
 
 
 def rate_text(steps_per_s: float) -> str:
@@ -308,12 +329,19 @@ class _LongRunNote:
             self.bar(done, total)
 
     def _warn_if_long(self, steps: int) -> None:
-        from orbitsim.estimate import LONG_RUN_S, estimate_time
+        from orbitsim.estimate import LONG_RUN_S, SLOW_STEP_S, estimate_time
 
         estimate = estimate_time(self.scenario, threads=self.threads, steps=steps)
-        if estimate is not None and estimate.total_s > LONG_RUN_S:
+        if estimate is None:
+            return
+        # One line either way; a stop (Ctrl-C) cuts a slow step short and throws it away (orbitsim.stopping).
+        slow = (f"; each step takes over {SLOW_STEP_S:.0f} s: Ctrl-C stops within 2 s and discards the step in "
+                "progress" if estimate.step_s > SLOW_STEP_S else "")
+        if estimate.total_s > LONG_RUN_S:
             hint = "" if self.scenario.checkpoints else "; --checkpoint-seconds 600 makes it resumable after a kill"
-            warn(f"this run is expected to take a long time: {estimate.describe()}{hint}")
+            warn(f"this run is expected to take a long time: {estimate.describe()}{hint}{slow}")
+        elif slow:
+            warn(f"this run's steps are expected to be slow: {estimate.describe()}{slow}")
 
 
 class _ProgressBar:

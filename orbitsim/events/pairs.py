@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit, jit_inline, stop_requested
 from orbitsim.events.layout import (
     C_CENTRAL,
     C_DETECT,
@@ -120,6 +120,8 @@ def scan_pairs(watch, pos, vel, m, n_done, t0, dt):
             hill[1, k] = hill_scale * (2.0 * m[k]) ** (1.0 / 3.0)
     limit = fconf[F_ENC]
     for i in range(n):
+        if stop_requested():  # a stop (orbitsim.stopping): the caller undoes the call, watch included
+            return stop
         for j in range(i + 1, n):
             dx = pos[0, i] - pos[0, j]
             dy = pos[1, i] - pos[1, j]

@@ -1,7 +1,9 @@
-"""Random initial conditions: a Plummer sphere and a Keplerian test-particle disc.
+"""Random initial conditions: a Plummer sphere and a Keplerian disc (test bodies or planetesimals).
 
 Both generators draw every random number from ``numpy.random.default_rng(seed)``
-in a fixed order, so the same arguments give bit-identical arrays.
+in a fixed order, so the same arguments give bit-identical arrays. A disc's masses, when it has
+any, are drawn after everything else, so the orbits of a disc do not depend on its masses being
+asked for (the test-body disc of a seed keeps its bits).
 
 References
 ----------
@@ -12,6 +14,8 @@ References
        sampling the Plummer model).
 .. [3] Binney, J. & Tremaine, S. (2008), *Galactic Dynamics*, 2nd ed., ch. 2 and 4
        (Plummer potential and distribution function).
+.. [4] Devroye, L. (1986), *Non-Uniform Random Variate Generation*, Springer, ch. II.2
+       (sampling by inverting the cumulative distribution).
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import numpy as np
 
 from orbitsim.initial_conditions.elements import elements_to_cartesian
 
-__all__ = ["PLUMMER_HALF_MASS_RADIUS", "disc", "plummer"]
+__all__ = ["PLUMMER_HALF_MASS_RADIUS", "disc", "plummer", "power_law_masses", "sphere_radii"]
 
 #: Half-mass radius of a Plummer sphere in units of its scale radius, 1/sqrt(2^(2/3) - 1).
 PLUMMER_HALF_MASS_RADIUS: float = 1.0 / math.sqrt(2.0 ** (2.0 / 3.0) - 1.0)
@@ -132,6 +136,44 @@ def plummer(
     return masses, positions * scale_radius, velocities * math.sqrt(G * total_mass / scale_radius)
 
 
+def power_law_masses(u: np.ndarray, m_min: float, m_max: float, index: float) -> np.ndarray:
+    """Masses distributed as dN/dm ∝ m^index on [m_min, m_max], from uniform numbers ``u`` in [0, 1).
+
+    Inverts the cumulative distribution (Devroye 1986, ch. II.2): with p = index + 1 and
+    L = ln(m_max / m_min), m^p = m_min^p + u (m_max^p - m_min^p), that is
+
+        m = m_min exp(log1p(u expm1(p L)) / p)          for p < 0,
+        m = m_max exp(log1p((1 - u) expm1(-p L)) / p)   for p > 0,
+
+    and m = m_min exp(u L) for p = 0 (index -1: uniform in log m). ``expm1`` of a negative argument stays
+    in (-1, 0], so nothing overflows however steep the power law, and with ``log1p`` no digits are lost
+    as p -> 0.
+    ``m_min == m_max`` gives every body that mass. The results are clipped to [m_min, m_max]
+    against round-off.
+    """
+    u = np.asarray(u, dtype=np.float64)
+    if m_min == m_max:
+        return np.full(u.shape, float(m_min))
+    p = float(index) + 1.0
+    span = math.log(m_max / m_min)
+    if p == 0.0:
+        masses = m_min * np.exp(u * span)
+    elif p < 0.0:
+        masses = m_min * np.exp(np.log1p(u * math.expm1(p * span)) / p)
+    else:
+        with np.errstate(divide="ignore"):  # log1p(-1) = -inf at u = 0 of a steep law: m = m_min, exactly right
+            masses = m_max * np.exp(np.log1p((1.0 - u) * math.expm1(-p * span)) / p)
+    return np.clip(masses, m_min, m_max)
+
+
+def sphere_radii(masses: np.ndarray, density: float) -> np.ndarray:
+    """Radii of uniform spheres of ``masses`` and bulk ``density``: r = (3 m / (4 pi rho))^(1/3).
+
+    ``density`` is in the scenario's mass per length cubed, so the radii come out in its length unit.
+    """
+    return np.cbrt(3.0 * np.asarray(masses, dtype=np.float64) / (4.0 * math.pi * density))
+
+
 def disc(
     n: int,
     *,
@@ -142,8 +184,12 @@ def disc(
     G: float = 1.0,
     e_max: float = 0.0,
     inc_max_deg: float = 0.0,
+    m_min: float | None = None,
+    m_max: float | None = None,
+    mass_index: float | None = None,
 ) -> Arrays:
-    """A central star plus ``n`` massless test bodies on Keplerian orbits.
+    """A central star plus ``n`` bodies on Keplerian orbits: massless test bodies, or planetesimals
+    whose masses follow a power law.
 
     Parameters
     ----------
@@ -161,13 +207,17 @@ def disc(
         Eccentricities are uniform in ``[0, e_max]``, ``0 <= e_max < 1``.
     inc_max_deg : float
         Inclinations are uniform in ``[0, inc_max_deg]`` degrees, at most 180.
+    m_min, m_max, mass_index : float, optional
+        The bodies' masses, dN/dm ∝ m^mass_index on ``[m_min, m_max]``
+        (:func:`power_law_masses`; ``mass_index`` may be left out when ``m_min == m_max``).
+        Without them the bodies are massless.
 
     Returns
     -------
     masses : numpy.ndarray, shape (n + 1,)
-        ``central_mass`` followed by ``n`` zeros.
+        ``central_mass`` followed by the ``n`` bodies' masses (zeros for test bodies).
     positions, velocities : numpy.ndarray, shape (n + 1, 3)
-        Star first, then the test bodies relative to it.
+        Star first, then the bodies relative to it.
 
     Notes
     -----
@@ -176,10 +226,16 @@ def disc(
     density is constant.  Mean anomaly, node and argument of periapsis are
     uniform in [0, 360) degrees.  Each body's state comes from
     :func:`~orbitsim.initial_conditions.elements.elements_to_cartesian` with
-    :math:`gm = G M_\\star` (massless bodies), so its specific energy is
-    :math:`-G M_\\star / (2a)`.
+    :math:`gm = G (M_\\star + m)`, the two-body value a scenario's orbital elements use
+    (:math:`G M_\\star` for a test body), so its specific energy relative to the star is
+    :math:`-gm / (2a)`.  The star stays at the origin at rest: with massive bodies the centre of
+    mass is not there (``frame: barycentric`` moves the system to it).  Masses are drawn last, one
+    uniform number per body, so the orbits are the same with or without them.
     """
     _check_disc_arguments(n, central_mass, r_min, r_max, G, e_max, inc_max_deg)
+    massive = m_min is not None or m_max is not None
+    if massive:
+        _check_disc_masses(m_min, m_max, mass_index)
     rng = np.random.default_rng(seed)
     # All element arrays are drawn even when e_max or inc_max_deg is 0 so that
     # the random stream, and hence the radii and phases, do not depend on them.
@@ -189,16 +245,32 @@ def disc(
     inc = inc_max_deg * rng.random(n)
     node = rng.uniform(0.0, 360.0, n)
     periapsis = rng.uniform(0.0, 360.0, n)
-    gm = G * central_mass
+    masses = np.zeros(n + 1)
+    masses[0] = central_mass
+    if massive:
+        masses[1:] = power_law_masses(rng.random(n), float(m_min), float(m_max),  # type: ignore[arg-type]
+                                      0.0 if mass_index is None else float(mass_index))
+        gm = G * (central_mass + masses[1:])
+    else:
+        gm = np.full(n, G * central_mass)  # the test-body disc: the same gm, to the bit, as before masses
     positions = np.zeros((n + 1, 3))
     velocities = np.zeros((n + 1, 3))
     for i in range(n):
         positions[i + 1], velocities[i + 1] = elements_to_cartesian(
-            gm, a[i], e[i], inc[i], node[i], periapsis[i], M=mean_anomaly[i]
+            gm[i], a[i], e[i], inc[i], node[i], periapsis[i], M=mean_anomaly[i]
         )
-    masses = np.zeros(n + 1)
-    masses[0] = central_mass
     return masses, positions, velocities
+
+
+def _check_disc_masses(m_min: float | None, m_max: float | None, mass_index: float | None) -> None:
+    """Raise ValueError for a mass distribution :func:`power_law_masses` cannot draw from."""
+    _require(m_min is not None and m_max is not None, "give both m_min and m_max (or neither, for test bodies)")
+    for name, value in (("m_min", m_min), ("m_max", m_max)):
+        _require(math.isfinite(value) and value > 0.0, f"{name} must be positive and finite, got {value}")
+    _require(m_min <= m_max, f"need m_min <= m_max, got {m_min} > {m_max}")
+    if m_min < m_max:
+        _require(mass_index is not None, "m_min < m_max needs mass_index (dN/dm ∝ m^mass_index)")
+        _require(math.isfinite(mass_index), f"mass_index must be finite, got {mass_index}")
 
 
 def _check_disc_arguments(

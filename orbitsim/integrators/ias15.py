@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, stop_requested
 from orbitsim.events.kernels import after_step, remember_start
 from orbitsim.integrators.base import IntegratorSpec, is_finite_state, record_sample
 from orbitsim.integrators.ias15_core import (
@@ -232,6 +232,8 @@ def integrate_to(pos, vel, acc, m, force, work, t_target, watch):
         tscale = 1e-12
     result = REACHED
     while True:
+        if stop_requested():  # a stop (orbitsim.stopping): the caller undoes the call, whatever it returns;
+            break  # without this the steps left in the interval would go on, on forces cut short
         t, dt = clock[CLOCK_T], clock[CLOCK_DT]
         if (t + dt) * sign >= t_target * sign:
             if t == t_target:

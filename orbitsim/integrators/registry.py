@@ -12,6 +12,7 @@ or reading :data:`MODULES` or :data:`INTEGRATORS`, imports them all.
 
 from __future__ import annotations
 
+import difflib
 import functools
 import importlib
 from types import ModuleType
@@ -73,19 +74,33 @@ def _normalise(name: str) -> str:
 
 
 def get_module(name: str) -> ModuleType:
-    """The module (``SPEC``, ``step``, ``run``) for an integrator name or alias."""
+    """The module (``SPEC``, ``step``, ``run``) for an integrator name, alias or REBOUND name of the same
+    scheme (``whfast``: :mod:`orbitsim.integrators.rebound_names`)."""
+    from orbitsim.integrators.rebound_names import SAME_SCHEME
+
     key = _normalise(name) if isinstance(name, str) else ""
+    key = SAME_SCHEME.get(key, key)
     if key in MODULE_NAMES:
         return _module(key)
     module = _by_name().get(key)
     if module is None:
-        specs = [m.SPEC for m in _modules()]
-        raise UnknownIntegratorError(
-            f"unknown integrator {name!r}; valid names: {', '.join(spec.name for spec in specs)} (aliases: "
-            + ", ".join(a for spec in specs for a in spec.aliases)
-            + ")"
-        )
+        raise UnknownIntegratorError(_unknown_message(name, key))
     return module
+
+
+def _unknown_message(name: Any, key: str) -> str:
+    """One line for an unknown name: REBOUND's closest scheme, else the nearest valid name, then every name."""
+    from orbitsim.integrators.rebound_names import SAME_SCHEME, closest_scheme
+
+    specs = [m.SPEC for m in _modules()]
+    names = ", ".join(spec.name for spec in specs)
+    aliases = ", ".join(a for spec in specs for a in spec.aliases)
+    rebound = closest_scheme(key) if key else None
+    if rebound is not None:
+        return f"unknown integrator {name!r}: REBOUND's {key} is not in orbitsim; {rebound} (valid names: {names})"
+    close = difflib.get_close_matches(key, [*_by_name(), *SAME_SCHEME], n=1, cutoff=0.6) if key else []
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown integrator {name!r}{hint} (valid names: {names}; aliases: {aliases})"
 
 
 def get_spec(name: str) -> IntegratorSpec:

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, stop_requested
 from orbitsim.forces.hooks import add_interaction_forces
 from orbitsim.integrators.wh_settings import COORDINATE_IDS
 from orbitsim.physics.coordinates import (
@@ -137,7 +137,8 @@ def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
     """Pair accelerations of H_interaction at inertial ``pos`` into ``acc`` (3, N).
 
     Jacobi leaves out the (0, 1) pair; democratic heliocentric every pair with body 0. Each pair
-    is computed once (Newton's third law), in exact arithmetic.
+    is computed once (Newton's third law), in exact arithmetic. Before each row it looks at
+    :func:`~orbitsim._jit.stop_requested`, as the direct-sum force loop does.
     """
     n = pos.shape[1]
     for c in range(3):
@@ -145,6 +146,8 @@ def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
             acc[c, i] = 0.0
     first = 1 if coordinates == DEMOCRATIC_HELIOCENTRIC else 0
     for i in range(first, n):
+        if stop_requested():  # a stop (orbitsim.stopping): the caller undoes the call
+            return
         xi, yi, zi = pos[0, i], pos[1, i], pos[2, i]
         axi = 0.0
         ayi = 0.0

@@ -62,6 +62,7 @@ from orbitsim.io.journal import (
     journal_path,
 )
 from orbitsim.io.schema import CheckpointError
+from orbitsim.io.stored_scenario import read_scenario_bodies, write_scenario_bodies
 
 __all__ = [
     "CHECKPOINT_FORMAT",
@@ -129,10 +130,11 @@ class Checkpoint:
     """A state plus where the run stood: samples written, the journal prefix, the scenario.
 
     ``last_sample_step`` is -1 before the first sample; the run continues with the planned
-    sample steps after it. ``scenario`` (resolved YAML) is empty in a trace's group, whose root
-    attributes hold it. ``E0``, ``max_abs_energy_error``, ``last_sample_time`` and
-    ``wall_time_s`` only let a resumed run report the same summary as an uninterrupted one;
-    ``written_at`` and ``writer`` (pid and host) are filled in when a checkpoint is read.
+    sample steps after it. ``scenario`` (resolved YAML; for a large scenario without its bodies,
+    which are ``scenario_bodies``) is empty in a trace's group, whose root holds it. ``E0``,
+    ``max_abs_energy_error``, ``last_sample_time`` and ``wall_time_s`` only let a resumed run
+    report the same summary as an uninterrupted one; ``written_at`` and ``writer`` (pid and host)
+    are filled in when a checkpoint is read.
     """
 
     state: SimState
@@ -142,6 +144,9 @@ class Checkpoint:
     integrator: str
     scenario_sha256: str
     scenario: str = ""
+    # A large scenario's per-body rows, stored beside its text (orbitsim.io.stored_scenario); None when
+    # the text is whole.
+    scenario_bodies: dict[str, np.ndarray] | None = None
     scenario_name: str = ""
     scenario_source: str = ""
     journal_bytes: int = 0
@@ -192,14 +197,19 @@ def write_checkpoint_group(group: h5py.Group, ckpt: Checkpoint) -> None:
         writer_pid=os.getpid(), writer_host=socket.gethostname(), orbitsim_version=__version__)
     if ckpt.scenario:
         attrs["scenario"] = ckpt.scenario
+        if ckpt.scenario_bodies is not None:
+            write_scenario_bodies(group, ckpt.scenario_bodies)
     if ckpt.t0 != 0.0 or ckpt.history:  # absent in every run that never switched: old files read the same
         attrs.update(t0=float(ckpt.t0), history=ckpt.history)
     for key, value in attrs.items():
         group.attrs[key] = value
 
 
-def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "") -> Checkpoint:
+def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "",
+                          scenario_bodies: dict[str, np.ndarray] | None = None) -> Checkpoint:
     """Read a checkpoint written by :func:`write_checkpoint_group`; verify its state digest.
+
+    ``scenario`` and ``scenario_bodies`` stand in for a trace's group, whose root holds them.
 
     Raises
     ------
@@ -219,7 +229,9 @@ def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "") -> 
         counters = {name: int(attrs[name]) for name in _COUNTERS if name != "steps_done"}
         ckpt = Checkpoint(
             state=state, integrator=str(attrs["integrator"]), scenario_sha256=str(attrs["scenario_sha256"]),
-            scenario=str(attrs.get("scenario", scenario)), scenario_name=str(attrs.get("scenario_name", "")),
+            scenario=str(attrs.get("scenario", scenario)),
+            scenario_bodies=read_scenario_bodies(group) if "scenario" in attrs else scenario_bodies,
+            scenario_name=str(attrs.get("scenario_name", "")),
             scenario_source=str(attrs.get("scenario_source", "")),
             force=bool(attrs["force"]), E0=float(attrs["E0"]), energy_scale=float(attrs.get("energy_scale", np.nan)),
             max_abs_energy_error=float(attrs["max_abs_energy_error"]),

@@ -43,7 +43,8 @@ from typing import Any
 
 from orbitsim.io.schema import OutputBusyError, OutputError, OutputWriteError
 
-__all__ = ["OutputLock", "current_holder", "describe_holder", "hold_output", "lock_path", "rerun_command"]
+__all__ = ["OutputLock", "clear_abandoned_lock", "current_holder", "describe_holder", "hold_output", "lock_path",
+           "rerun_command"]
 
 _ATTEMPTS = 20  # a lock file replaced under us this many times in a row means something is wrong
 
@@ -231,3 +232,26 @@ def hold_output(output: str | os.PathLike) -> Iterator[OutputLock]:
             if held.depth == 0:
                 del _HELD[key]
                 held.release()
+
+
+def clear_abandoned_lock(output: str | os.PathLike) -> bool:
+    """Remove ``<OUT>.lock`` and ``<OUT>.tmp`` when the run that left them is gone; True if it was.
+
+    The holder is gone when its lock can be taken: ``flock`` is dropped by the kernel when its
+    holder dies, SIGKILL included, and the record in the file (pid, host) is only what it was. The
+    lock is taken as a run takes it (:func:`hold_output`), so this never races a run starting on
+    the same output; the ``.tmp`` is then nobody's (a run truncates it under the same lock), and
+    releasing the lock removes its file. A live holder's files are left alone (False).
+
+    ``orbitsim batch`` calls it for each run of a sweep, so the files of runs killed with it (a
+    shutdown, SIGTERM, SIGKILL) do not outlive a rerun that reuses their finished traces.
+    """
+    output = Path(output)
+    if not lock_path(output).exists():
+        return False
+    try:
+        with hold_output(output):
+            Path(f"{os.fspath(output)}.tmp").unlink(missing_ok=True)
+    except OutputError:  # a live holder (OutputBusyError), or the directory is not ours to change
+        return False
+    return True

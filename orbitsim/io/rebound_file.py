@@ -3,7 +3,9 @@
 Reading: :func:`read_rebound_file` takes one snapshot of a REBOUND Simulation or Simulationarchive
 file (both are the same binary format; a plain ``save_to_file`` is an archive of one snapshot) and
 returns the particles' masses, positions, velocities and radii, ``G``, ``t``, ``dt``, the softening
-and the integrator mapped to orbitsim's (:func:`orbitsim_integrator`).
+and the integrator mapped to orbitsim's (:func:`orbitsim_integrator`). A snapshot saved
+unsynchronised (WHFast, SABA, MERCURIUS, EOS with ``safe_mode = 0``) is read as REBOUND's
+``sim.synchronize()`` reports it (:func:`_synchronized`), the physical state at its ``t``.
 
 Writing: :func:`write_rebound_file` builds a :class:`rebound.Simulation` from a state and saves it
 atomically (a temporary file beside the target, then a rename): ``save_to_file`` *appends* a
@@ -109,8 +111,52 @@ def read_rebound_file(path: str | os.PathLike[str], snapshot: int = -1) -> Rebou
         plural = "s" if count != 1 else ""
         raise ReboundFileError(f"{name}: snapshot {snapshot!r} is out of range: the file holds {count} "
                                f"snapshot{plural} (0 to {count - 1}, or -1 for the last)", "snapshot")
-    sim = archive[int(snapshot)]
-    return _snapshot(sim, name, int(snapshot) % count, count)
+    index = int(snapshot) % count
+    with warnings.catch_warnings():  # _synchronized handles this one; REBOUND's other warnings still show
+        warnings.filterwarnings("ignore", message="The simulation might not be synchronized", category=RuntimeWarning)
+        sim = archive[index]
+    return _snapshot(_synchronized(sim, name, index), name, index, count)
+
+
+def _synchronized(sim: Any, name: str, index: int) -> Any:
+    """``sim`` with its particles synchronised as ``sim.synchronize()`` reports them.
+
+    REBOUND's WHFast, SABA, MERCURIUS and EOS with ``safe_mode = 0`` combine the closing drift of a
+    step with the opening drift of the next, so between steps (where a Simulationarchive saves its
+    snapshots) the particles hold a drifted, uncorrected state and ``sim.is_synchronized`` is 0; the
+    integrator's own coordinates in the file are what REBOUND continues from. REBOUND's
+    ``synchronize`` applies the owed drift (and the inverse corrector) with REBOUND's own
+    arithmetic; ``keep_unsynchronized = 1`` would keep ``is_synchronized`` 0 after it, so it is
+    cleared first (the copy is this reader's own, never written back). Leapfrog, IAS15, TRACE, BS
+    and JANUS are synchronised at every step and pass through untouched (same bits as saved).
+
+    Raises
+    ------
+    ReboundFileError
+        When REBOUND reports an error while synchronising or the snapshot is still not synchronised
+        afterwards, naming the setting.
+    """
+    if sim.is_synchronized:
+        return sim
+    config = sim.integrator
+    scheme = str(config)
+    fields = {fd.name.decode() for fd in config.callbacks.field_descriptor_list}
+    setting = f"REBOUND {scheme} with safe_mode = 0" if "safe_mode" in fields else f"REBOUND {scheme}"
+    try:
+        if "keep_unsynchronized" in fields:
+            config.keep_unsynchronized = 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)  # REBOUND reports its problems as warnings too
+            sim.synchronize()
+    except (RuntimeError, RuntimeWarning, ValueError) as err:
+        raise ReboundFileError(f"{name}: snapshot {index} was saved unsynchronised ({setting}) and REBOUND "
+                               f"could not synchronise it ({' '.join(str(err).split())}); save it after "
+                               "sim.synchronize() or with safe_mode = 1", "snapshot") from None
+    if not sim.is_synchronized:
+        raise ReboundFileError(f"{name}: snapshot {index} was saved unsynchronised ({setting}) and REBOUND's "
+                               "synchronize() left it so; save it after sim.synchronize() or with safe_mode = 1",
+                               "snapshot")
+    return sim
 
 
 def _snapshot(sim: Any, name: str, index: int, count: int) -> ReboundSnapshot:

@@ -48,6 +48,8 @@ Datasets (per-sample ones are resizable along S, chunked, gzip+shuffle compresse
   and ``details`` (:class:`orbitsim.events.log.Event` says what each holds)
 * group ``checkpoint`` (optional): the state the run stopped in, so that it can be resumed or
   extended bit for bit; its layout is documented in :mod:`orbitsim.io.checkpoint`
+* group ``scenario_bodies`` (a scenario whose resolved text would pass 256 KiB): its bodies' rows
+  as datasets, the ``scenario`` attribute holding the rest (:mod:`orbitsim.io.stored_scenario`)
 
 Writing protocol: data go to ``<path>.tmp`` in the target's directory and are renamed
 onto ``<path>`` only in :meth:`TraceWriter.close`, so a file at ``<path>`` is always

@@ -82,6 +82,9 @@ class TraceWriter:
         ``energy_offset`` series is added to the energy before ``energy_error`` is computed.
     group_attrs : Mapping[str, Mapping[str, Any]], optional
         Attributes of the groups those series make (``{"elements": {"primary": "jacobi"}}``).
+    scenario_bodies : Mapping[str, numpy.ndarray], optional
+        A large scenario's per-body rows, stored beside its ``scenario`` text attribute
+        (:mod:`orbitsim.io.stored_scenario`).
 
     Raises
     ------
@@ -96,7 +99,8 @@ class TraceWriter:
     def __init__(self, path: str | os.PathLike, *, attrs: Mapping[str, Any], names: Sequence[str],
                  masses: np.ndarray, n_bodies: int, record_positions: bool,
                  overwrite: bool = False, extra_series: Mapping[str, tuple[int, ...]] | None = None,
-                 group_attrs: Mapping[str, Mapping[str, Any]] | None = None) -> None:
+                 group_attrs: Mapping[str, Mapping[str, Any]] | None = None,
+                 scenario_bodies: Mapping[str, np.ndarray] | None = None) -> None:
         self.path = Path(path)
         self.tmp_path = self.path.with_name(self.path.name + ".tmp")
         self._overwrite = overwrite
@@ -138,13 +142,13 @@ class TraceWriter:
             self._file = create(self.tmp_path)
             self._handle = vfd_handle(self._file)
             bound_metadata_cache(self._file)
-            self._init_file(self._file, attrs, names, masses)
+            self._init_file(self._file, attrs, names, masses, scenario_bodies)
             for group, values in (group_attrs or {}).items():
                 for key, value in values.items():
                     self._file[group].attrs[key] = _attr_value(key, value)
 
     def _init_file(self, f: h5py.File, attrs: Mapping[str, Any], names: Sequence[str],
-                   masses: np.ndarray) -> None:
+                   masses: np.ndarray, scenario_bodies: Mapping[str, np.ndarray] | None) -> None:
         root: dict[str, Any] = {"steps_done": 0, "wall_time_s": 0.0, "message": ""}
         root.update({f"provenance_{k}": v for k, v in provenance().items()})
         root.update(attrs)
@@ -159,6 +163,11 @@ class TraceWriter:
             bodies.create_dataset("names", data=list(names), dtype=h5py.string_dtype("utf-8"))
             bodies.create_dataset("masses", data=masses)
             f.copy(bodies, "bodies")
+            if scenario_bodies is not None:  # a large scenario's rows (orbitsim.io.stored_scenario)
+                from orbitsim.io.stored_scenario import SCENARIO_BODIES, write_scenario_bodies
+
+                write_scenario_bodies(memory, scenario_bodies)
+                f.copy(memory[SCENARIO_BODIES], SCENARIO_BODIES)
         for name, tail in self._trailing.items():
             chunks = chunk_shape(tail, self.n_bodies)
             self._datasets[name] = f.create_dataset(

@@ -11,6 +11,9 @@ Arrays are ``(3, N)`` as in :mod:`orbitsim.physics.gravity`. The potential is su
 (a private partial for each row), then the partials are added in row order: the result is
 deterministic and the same on any number of threads.
 
+The parallel potential (a sample's cost at large N) looks at :func:`orbitsim._jit.stop_requested`
+before each row, as the force loop does, so a stop reaches it within a row of N terms.
+
 The potential is exact arithmetic: the compiler may not reorder its sum. Its order is fixed here
 instead: each row's terms m_j / r_ij (j > i, in order) go round-robin into four partial sums,
 added as (s0 + s1) + (s2 + s3). The terms are computed a block of :data:`TERM_BLOCK` at a time into
@@ -28,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_inline, jit_parallel_exact
+from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
 
 #: Above this N the O(N^2) potential runs its rows in parallel (its rows are independent).
 PARALLEL_POTENTIAL_MIN_N = 384
@@ -156,6 +159,8 @@ def _potential_parallel(pos, m, G, eps2, rows):
     bufs = np.empty((POTENTIAL_STRIDES, TERM_BLOCK))
     for c in prange(POTENTIAL_STRIDES):
         for i in range(c, n, POTENTIAL_STRIDES):
+            if stop_requested():  # a stop: the sum is left incomplete, and the caller discards it
+                break
             rows[i] = _potential_row_buffered(pos, m, eps2, i, bufs[c])
     total = 0.0
     for i in range(n):

@@ -28,6 +28,11 @@ measured (benchmarks/README.md):
 Every path is used by the serial and the parallel kernel alike (the parallel one hands a single
 block to the serial one), so the two stay bit-identical for every N and every partition.
 
+A stop (Ctrl-C, SIGTERM) reaches the row loops through :func:`orbitsim._jit.stop_requested`: they
+look at it before every pair of rows and return early, so a force evaluation that takes minutes at
+N = 10^6 ends within milliseconds of the request; the caller throws the step away
+(:mod:`orbitsim.stopping`). Only :func:`all_pairs_accelerations` (N <= 48: nanoseconds) does not look.
+
 How the stepping loops call these kernels: each scheme's ``advance`` unpacks the force context of
 :func:`make_force` once and calls :func:`all_pairs_accelerations` (N <= SMALL_N_MAX) or
 :func:`accelerations` from its own loop body, not through an inlined helper. Numba gives an
@@ -42,7 +47,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_force, jit_parallel
+from orbitsim._jit import jit, jit_force, jit_parallel, stop_requested
 
 #: Smallest N for which the parallel kernel is faster than the serial one on this machine
 #: (measured crossover: see benchmarks/README.md; at N = 128 the thread start-up still dominates).
@@ -135,10 +140,17 @@ def _accumulate_rows(x, y, z, m, eps2, i_start, i_stop, ax, ay, az):
     per core at N = 1024 ... 16384 (it is bound by the square-root/division unit, at about 80% of
     it). The tiling starts at ``i_start``, a function of N alone, so the sums stay deterministic.
     An odd last row goes alone.
+
+    Before each pair of rows it looks at :func:`~orbitsim._jit.stop_requested` (one atomic load per
+    2N pairs, outside the vectorised j-loop) and returns at once when a stop is asked: at N = 10^6
+    the next look is a few milliseconds away, where the whole sum takes minutes. The sum is then
+    incomplete and the caller discards the call (:func:`orbitsim.stopping.run_interruptible`).
     """
     n = x.shape[0]
     i = i_start
     while i + 1 < i_stop:
+        if stop_requested():
+            return
         xa = x[i]
         ya = y[i]
         za = z[i]
@@ -299,8 +311,12 @@ def accelerations_parallel(pos, m, G, eps2, acc, slabs, bounds):
 def accelerations(pos, m, G, eps2, acc, slabs, bounds):
     """Accelerations at ``pos`` into ``acc``: the serial kernel for one block, else the parallel.
 
-    This is the kernel every integrator step calls (as a module global, so callers cache).
+    This is the kernel every integrator step calls (as a module global, so callers cache). Once a
+    stop is asked (:func:`~orbitsim._jit.stop_requested`) it returns at once, ``acc`` untouched:
+    the steps left in a call that is being undone then cost O(N) each, not O(N^2).
     """
+    if stop_requested():
+        return
     if bounds.shape[0] == 2:
         accelerations_serial(pos, m, G, eps2, acc, slabs, bounds)
     else:

@@ -19,6 +19,7 @@ import numpy as np
 
 from orbitsim.analysis.record import RunRecord, SampleCollector, StateDiagnostics
 from orbitsim.reference.bridge import ReboundScheme, read_state, rebound_simulation
+from orbitsim.reference.force_pairing import attach_rebound_forces, rebound_force_lines, rebound_refusal
 from orbitsim.reference.sampling import _with_rebound_warnings
 
 __all__ = ["IAS15_DEFAULTS", "run_rebound_ias15"]
@@ -49,7 +50,7 @@ def _collect(sim: Any, collector: SampleCollector, times: np.ndarray, labels: np
 def run_rebound_ias15(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float,
                       softening: float, first_dt: float, times: np.ndarray, labels: np.ndarray,
                       settings: dict[str, Any] | None = None, engine: str = "reference", key: str = "ias15",
-                      display: str | None = None) -> RunRecord:
+                      display: str | None = None, forces: Any | None = None) -> RunRecord:
     """REBOUND IAS15 from the given state, sampled exactly at ``times``.
 
     Parameters
@@ -67,6 +68,13 @@ def run_rebound_ias15(masses: np.ndarray, positions: np.ndarray, velocities: np.
         ``epsilon`` and ``min_dt`` (default :data:`IAS15_DEFAULTS`).
     engine, key, display : str
         How the record is labelled (``engine/key``) and shown.
+    forces : ForceSet, optional
+        The run's forces, REBOUNDx forces in IAS15's equations of motion.
+
+    Raises
+    ------
+    ValueError
+        When REBOUNDx cannot express the forces (the message says why).
 
     Returns
     -------
@@ -74,12 +82,17 @@ def run_rebound_ias15(masses: np.ndarray, positions: np.ndarray, velocities: np.
         ``steps_done`` counts IAS15's accepted steps, ``wall_time_s`` the time inside
         ``sim.integrate``; ``extra["steps_taken"]`` the accepted steps up to each sample.
     """
+    scheme = ReboundScheme("ias15")
+    why = rebound_refusal(forces, scheme)
+    if why:
+        raise ValueError(f"REBOUND's IAS15 cannot carry the forces: {why}")
     config = {**IAS15_DEFAULTS, **{k: v for k, v in (settings or {}).items() if k in IAS15_DEFAULTS}}
     sim = rebound_simulation(masses, positions, velocities, G=G, softening=softening, dt=float(first_dt),
-                             scheme=ReboundScheme("ias15"))
+                             scheme=scheme)
     sim.integrator.epsilon = float(config["epsilon"])
     sim.integrator.min_dt = float(config["min_dt"])
-    diagnostics = StateDiagnostics(masses, G, softening)
+    attached = attach_rebound_forces(sim, forces, scheme)  # owns the REBOUNDx forces while sim runs
+    diagnostics = StateDiagnostics(masses, G, softening, forces)
     diagnostics(*read_state(sim))  # load the jitted kernels before the clock starts
     collector = SampleCollector(diagnostics)
     taken: list[int] = []
@@ -87,10 +100,11 @@ def run_rebound_ias15(masses: np.ndarray, positions: np.ndarray, velocities: np.
         lambda: _collect(sim, collector, np.asarray(times, dtype=np.float64),
                          np.asarray(labels, dtype=np.int64), taken))
     message = "; ".join([m for m in (message, *notes) if m])
+    del attached
     options = {"epsilon": float(config["epsilon"]), "min_dt": float(config["min_dt"]),
                "first_dt": float(first_dt), "exact_finish_time": 1}
     return RunRecord(engine=engine, integrator="ias15", key=key,
                      display=display or f"REBOUND IAS15 (epsilon {config['epsilon']:g})", order=None,
                      options=options, dt=float(first_dt), wall_time_s=wall, steps_done=int(sim.steps_done),
                      status=status, message=message, extra={"steps_taken": np.asarray(taken, dtype=np.int64)},
-                     **collector.arrays(len(np.atleast_1d(masses))))
+                     forces=rebound_force_lines(forces, scheme), **collector.arrays(len(np.atleast_1d(masses))))

@@ -21,6 +21,7 @@ import numpy as np
 
 from orbitsim.analysis.record import RunRecord, SampleCollector, StateDiagnostics
 from orbitsim.reference.bridge import ReboundScheme, parse_rebound_scheme, read_state, rebound_simulation
+from orbitsim.reference.force_pairing import attach_rebound_forces, rebound_force_lines, rebound_refusal
 
 #: The reference integrator and its accuracy parameter. REBOUND's default epsilon = 1e-9 keeps
 #: IAS15's error at the level of double-precision round-off for well-resolved orbits
@@ -72,7 +73,7 @@ def _collect_steps(sim: Any, collector: SampleCollector, sample_steps: np.ndarra
 
 def run_rebound(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float,
                 softening: float, dt: float, scheme: ReboundScheme | str, sample_steps: np.ndarray,
-                settings: dict[str, Any] | None = None, key: str | None = None) -> RunRecord:
+                settings: dict[str, Any] | None = None, key: str | None = None, forces: Any | None = None) -> RunRecord:
     """Run a fixed-step REBOUND scheme and sample it at ``sample_steps``.
 
     Parameters
@@ -89,6 +90,14 @@ def run_rebound(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarra
         orbitsim integrator settings of the partner run (WHFast reads them).
     key : str, optional
         Record key (default: the scheme's key).
+    forces : ForceSet, optional
+        The run's forces, carried by REBOUNDx as orbitsim's partner applies them
+        (:mod:`orbitsim.reference.force_pairing`).
+
+    Raises
+    ------
+    ValueError
+        For an adaptive scheme, or forces REBOUND cannot carry for this scheme (the message says why).
 
     Returns
     -------
@@ -98,19 +107,24 @@ def run_rebound(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarra
     scheme = parse_rebound_scheme(scheme) if isinstance(scheme, str) else scheme
     if not scheme.fixed_step:
         raise ValueError(f"{scheme.display} is adaptive; use run_reference for it")
+    why = rebound_refusal(forces, scheme, settings)
+    if why:
+        raise ValueError(f"{scheme.display} cannot carry the forces: {why}")
     steps = np.asarray(sample_steps, dtype=np.int64)
     sim = rebound_simulation(masses, positions, velocities, G=G, softening=softening, dt=dt,
                              scheme=scheme, settings=settings)
-    diagnostics = StateDiagnostics(masses, G, softening)
+    attached = attach_rebound_forces(sim, forces, scheme)  # owns the REBOUNDx forces while sim runs
+    diagnostics = StateDiagnostics(masses, G, softening, forces)
     diagnostics(*read_state(sim))  # load the jitted kernels before the clock starts
     collector = SampleCollector(diagnostics)
     (done, wall, status, message), notes = _with_rebound_warnings(
         lambda: _collect_steps(sim, collector, steps, dt))
     message = "; ".join([m for m in (message, *notes) if m])
+    del attached
     return RunRecord(engine="rebound", integrator=scheme.name, key=key or scheme.key,
                      display=scheme.display, order=scheme.order, options=scheme.options, dt=float(dt),
                      wall_time_s=wall, steps_done=done, status=status, message=message,
-                     **collector.arrays(len(np.atleast_1d(masses))))
+                     forces=rebound_force_lines(forces, scheme), **collector.arrays(len(np.atleast_1d(masses))))
 
 
 def _collect_times(sim: Any, collector: SampleCollector, sample_steps: np.ndarray,
@@ -132,26 +146,32 @@ def _collect_times(sim: Any, collector: SampleCollector, sample_steps: np.ndarra
 
 
 def run_reference(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float,
-                  softening: float, dt: float, sample_steps: np.ndarray) -> RunRecord:
+                  softening: float, dt: float, sample_steps: np.ndarray, forces: Any | None = None) -> RunRecord:
     """The IAS15 reference, stopped exactly at the times ``sample_steps * dt``.
 
     ``dt`` only labels the samples (and seeds IAS15's first trial step); the reference is
     adaptive, so ``steps_done`` counts IAS15's own (variable) steps. ``wall_time_s`` is the time
-    spent inside ``sim.integrate``.
+    spent inside ``sim.integrate``. ``forces`` (a ForceSet) are REBOUNDx forces in its equations of
+    motion; a ValueError says why when REBOUNDx cannot express them.
     """
+    why = rebound_refusal(forces, REFERENCE_SCHEME)
+    if why:
+        raise ValueError(f"REBOUND's IAS15 cannot carry the forces: {why}")
     steps = np.asarray(sample_steps, dtype=np.int64)
     sim = rebound_simulation(masses, positions, velocities, G=G, softening=softening, dt=dt,
                              scheme=REFERENCE_SCHEME)
     sim.integrator.epsilon = REFERENCE_EPSILON
-    diagnostics = StateDiagnostics(masses, G, softening)
+    attached = attach_rebound_forces(sim, forces, REFERENCE_SCHEME)  # owns the REBOUNDx forces while sim runs
+    diagnostics = StateDiagnostics(masses, G, softening, forces)
     diagnostics(*read_state(sim))
     collector = SampleCollector(diagnostics)
     (wall, status, message), notes = _with_rebound_warnings(lambda: _collect_times(sim, collector, steps, dt))
     message = "; ".join([m for m in (message, *notes) if m])
+    del attached
     arrays = collector.arrays(len(np.atleast_1d(masses)))
     record = RunRecord(engine="reference", integrator="ias15", key="ias15",
                        display=f"REBOUND IAS15 reference (epsilon {REFERENCE_EPSILON:g})", order=None,
                        options={"epsilon": REFERENCE_EPSILON, "exact_finish_time": 1}, dt=float(dt),
                        wall_time_s=wall, steps_done=int(sim.steps_done), status=status,
-                       message=message, **arrays)
+                       message=message, forces=rebound_force_lines(forces, REFERENCE_SCHEME), **arrays)
     return record

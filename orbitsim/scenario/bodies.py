@@ -27,7 +27,8 @@ CARTESIAN_KEYS = ("name", "m", "x", "v", "r")
 ELEMENT_KEYS = ("name", "m", *ELEMENT_ONLY_KEYS, "r")
 EPHEMERIS_KEYS = ("source", "epoch", "jd", "bodies", "frame")
 PLUMMER_KEYS = ("kind", "n", "seed", "total_mass", "scale_radius", "prefix")
-DISC_KEYS = ("kind", "n", "seed", "central_mass", "r_min", "r_max", "e_max", "inc_max", "star", "prefix")
+DISC_KEYS = ("kind", "n", "seed", "central_mass", "r_min", "r_max", "e_max", "inc_max", "star", "prefix", "m_min",
+             "m_max", "mass_index", "density", "star_r")
 GENERATOR_KINDS = {"plummer": PLUMMER_KEYS, "disc": DISC_KEYS}
 
 #: Bytes of memory a run needs per body, generously: generator temporaries (~40 doubles), the
@@ -36,6 +37,9 @@ GENERATOR_KINDS = {"plummer": PLUMMER_KEYS, "disc": DISC_KEYS}
 BYTES_PER_BODY = 2048
 #: Bytes a run needs whatever N: Python, numba, HDF5 and the bounded sample and write buffers.
 BYTES_FIXED = 512 * 2**20
+
+#: How many bodies a note of ``orbitsim validate`` names before it counts the rest.
+_NOTE_BODIES = 5
 
 #: Ephemeris states come in au and days: length and time factors (au -> unit, day -> unit).
 _EPHEMERIS_SCALE = {"au-day-msun": ("au", "day"), "au-yr-msun": ("au", "gyr"), "si": ("m", "s")}
@@ -57,6 +61,8 @@ class BodySet:
     axes: str = "ecliptic"
     #: What the input meant, one line each, for ``orbitsim validate`` (angle unit, frames).
     notes: list[str] = field(default_factory=list)
+    #: Bodies given by elements without an anomaly (``bodies[1] (b)``): they start at f = 0.
+    no_anomaly: list[str] = field(default_factory=list)
     _index: dict[str, int] = field(default_factory=dict)
 
     def add(self, names: list[str], m: Any, x: Any, v: Any, origins: list[str], name_keys: list[str]) -> None:
@@ -124,6 +130,11 @@ def read_bodies(doc: Fields, G: float, units: str) -> BodySet:
             _read_body(item, join_path("bodies", i), G, bodies)
     if not bodies.names:
         raise ScenarioError("the scenario has no bodies: give a bodies list, an ephemeris or a generator")
+    if bodies.no_anomaly:
+        shown = ", ".join(bodies.no_anomaly[:_NOTE_BODIES])
+        more = f" and {len(bodies.no_anomaly) - _NOTE_BODIES} more" if len(bodies.no_anomaly) > _NOTE_BODIES else ""
+        bodies.notes.append(f"no anomaly (M, f, l or theta) for {shown}{more}: f = 0, at pericentre (REBOUND's "
+                            "default)")
     return bodies
 
 
@@ -275,13 +286,59 @@ def _read_generator(spec: Any, path: str, G: float, bodies: BodySet) -> None:
         r_min, r_max = gen.number("r_min", positive=True), gen.number("r_max", positive=True)
         if r_min > r_max:
             raise gen.error("r_max", f"must be >= r_min, got r_min = {r_min:g} > r_max = {r_max:g}")
+        masses = _disc_masses(gen, bodies.reader)
         m, x, v = disc(n, seed=seed, G=G, central_mass=gen.number("central_mass", 1.0, positive=True),
-                       r_min=r_min, r_max=r_max, e_max=e_max, inc_max_deg=inc_max)
+                       r_min=r_min, r_max=r_max, e_max=e_max, inc_max_deg=inc_max, **masses)
         names = [gen.string("star", "star"), *names]
     if not all(np.isfinite(arr).all() for arr in (m, x, v)):
         raise ScenarioError("the generated masses, positions or velocities overflow float64: use units in which "
                             "the masses and radii are closer to 1", key=path)
+    radii = _disc_radii(gen, bodies.reader, m) if kind == "disc" else None
+    if radii is not None:
+        first = len(bodies.names)
+        bodies.radii.update(zip(range(first, first + len(radii)), radii.tolist(), strict=True))
     bodies.add(names, m, x, v, [path] * len(names), [gen.key("prefix")] * len(names))
+
+
+def _disc_masses(gen: Fields, reader: QuantityReader) -> dict[str, float | None]:
+    """A disc's ``m_min``, ``m_max`` and ``mass_index`` (dN/dm ∝ m^mass_index); none of them: test bodies."""
+    if not (gen.has("m_min") or gen.has("m_max")):
+        for key in ("mass_index", "density"):
+            if gen.has(key):
+                raise gen.error(key, f"{key} describes the bodies' masses: give m_min and m_max too (without them "
+                                     "the disc's bodies are massless test bodies)")
+        return {}
+    if gen.has("m_min") != gen.has("m_max"):
+        given, missing = ("m_min", "m_max") if gen.has("m_min") else ("m_max", "m_min")
+        raise gen.error(missing, f"give both m_min and m_max (the range of the bodies' masses), got only {given}")
+    m_min = reader.number(gen.raw("m_min"), gen.key("m_min"), "mass", positive=True)
+    m_max = reader.number(gen.raw("m_max"), gen.key("m_max"), "mass", positive=True)
+    if m_min > m_max:
+        raise gen.error("m_max", f"must be >= m_min, got m_min = {m_min:g} > m_max = {m_max:g}")
+    index = gen.number("mass_index", None)
+    if index is None and m_min < m_max:
+        raise gen.error("mass_index", "m_min < m_max needs the power-law index of dN/dm ∝ m^mass_index (e.g. -1.8333 "
+                                      "for a collisional cascade, -1 for equal mass per decade)")
+    return {"m_min": m_min, "m_max": m_max, "mass_index": index}
+
+
+def _disc_radii(gen: Fields, reader: QuantityReader, m: np.ndarray) -> np.ndarray | None:
+    """Radii of a disc's star (``star_r``) and bodies (spheres of bulk ``density``); None when neither is given."""
+    from orbitsim.initial_conditions.generators import sphere_radii
+
+    if not (gen.has("density") or gen.has("star_r")):
+        return None
+    r = np.zeros(m.shape[0])
+    if gen.has("star_r"):
+        r[0] = reader.number(gen.raw("star_r"), gen.key("star_r"), "length", minimum=0.0)
+    if gen.has("density"):
+        density = reader.number(gen.raw("density"), gen.key("density"), "density", positive=True)
+        r[1:] = sphere_radii(m[1:], density)
+        if not np.isfinite(r[1:]).all() or not (r[1:] > 0.0).all():
+            raise gen.error("density", f"the radii (3 m / (4 pi density))^(1/3) from density = {density:g} are not "
+                                       "finite and > 0 in these units: use units in which the masses and the density "
+                                       "are closer to 1")
+    return r
 
 
 def shift_to_barycentre(m: np.ndarray, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -4,9 +4,12 @@ One of each group must be given (or takes its default):
 
 - size: ``a`` (semi-major axis), ``P`` (period, bound orbits only: a^3 = G (m_p + m) P^2 / 4 pi^2)
   or ``q`` (pericentre distance, a = q / (1 - e); the only choice for a parabola, e = 1);
-- orientation of the pericentre: ``omega`` (argument) or ``pomega`` (longitude, pomega = Omega + omega);
+- orientation of the pericentre: ``omega`` (argument) or ``pomega`` (longitude, pomega = Omega + omega;
+  on a retrograde orbit, cos(inc) <= 0, pomega = Omega - omega, REBOUND's convention);
 - position on the orbit: ``M`` or ``f`` (mean or true anomaly) or ``l`` or ``theta`` (mean or true
-  longitude, l = pomega + M, theta = pomega + f).
+  longitude, l = pomega + M, theta = pomega + f; retrograde: l = pomega - M, theta = pomega - f);
+  none of them means f = 0, at pericentre, REBOUND's rule (``rebound.Particle``, f = 0 when no
+  anomaly or longitude is passed), and ``orbitsim validate`` says so.
 
 Angles are in the scenario's ``angles`` unit (degrees unless ``angles: rad``), or strings
 ``"90 deg"``/``"1.57 rad"``; every error about an element names that unit, since a radian value
@@ -71,14 +74,26 @@ def _elements_state(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[
     e = body.number("e", 0.0, minimum=0.0)
     reader = bodies.reader
     angles = {k: reader.angle(body.raw(k), body.key(k)) if body.has(k) else 0.0 for k in ("inc", "Omega")}
+    # Longitudes (pomega, l, theta) are measured along the orbit's direction of motion, which on a
+    # retrograde orbit (cos i <= 0) runs against Omega: there pomega = Omega - omega, as in REBOUND's
+    # rebound.Particle (and its reb_orbit), where a prograde orbit has pomega = Omega + omega.
+    prograde = math.cos(math.radians(angles["inc"])) > 0.0  # REBOUND's test, on inc in radians
     if body.one_of("omega", "pomega", required=False) == "pomega":
-        angles["omega"] = reader.angle(body.raw("pomega"), body.key("pomega")) - angles["Omega"]
+        pomega = reader.angle(body.raw("pomega"), body.key("pomega"))
+        angles["omega"] = pomega - angles["Omega"] if prograde else angles["Omega"] - pomega
     else:
         angles["omega"] = reader.angle(body.raw("omega"), body.key("omega")) if body.has("omega") else 0.0
-    anomaly_key = body.one_of("M", "f", "l", "theta")
-    anomaly = reader.angle(body.raw(anomaly_key), body.key(anomaly_key))
-    if anomaly_key in ("l", "theta"):  # a longitude: measured from the node's reference direction
-        anomaly -= angles["Omega"] + angles["omega"]
+    anomaly_key = body.one_of("M", "f", "l", "theta", required=False)
+    if anomaly_key is None:  # REBOUND's rule: no anomaly or longitude means f = 0, at pericentre
+        bodies.no_anomaly.append(f"{body.path} ({body.data.get('name')})")
+        anomaly_key, anomaly = "f", 0.0
+    else:
+        anomaly = reader.angle(body.raw(anomaly_key), body.key(anomaly_key))
+    if anomaly_key in ("l", "theta"):  # a longitude: l = Omega + omega + M (retrograde: Omega - omega - M)
+        if prograde:
+            anomaly -= angles["Omega"] + angles["omega"]
+        else:
+            anomaly = angles["Omega"] - angles["omega"] - anomaly
     kind = {"l": "M", "theta": "f"}.get(anomaly_key, anomaly_key)
     a_key = body.key(size)
     if e == 1.0:

@@ -9,17 +9,19 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from orbitsim.scenario.bodies import check_coincident, read_bodies, shift_to_barycentre
+from orbitsim.integrators.rebound_names import rebound_note
+from orbitsim.scenario.bodies import BodySet, check_coincident, read_bodies, shift_to_barycentre
 from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.events import read_events
-from orbitsim.scenario.fields import Fields, describe
+from orbitsim.scenario.fields import MISSING, Fields, check_count, check_number, describe
 from orbitsim.scenario.model import DEFAULT_SAMPLES, FRAMES, Scenario, resolve_steps
+from orbitsim.scenario.quantities import scenario_time, wall_seconds
 from orbitsim.scenario.rebound_bodies import expand_rebound_bodies, uses_rebound_file
-from orbitsim.scenario.timing import adaptive_integrator, check_t_start, resolve_grid, run_span
+from orbitsim.scenario.timing import adaptive_integrator, check_t_start, resolve_grid, run_span, whole_count
 from orbitsim.scenario.yamlio import parse_yaml
 
-__all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict"]
+__all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict", "scenario_from_stored"]
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "t_start", "steps", "t_end", "output", "softening",
             "frame", "bodies", "ephemeris", "generator", "events", "forces", "integrator_state",
@@ -143,6 +145,54 @@ def scenario_from_dict(doc: Mapping[str, Any], source: str = "<inline>") -> Scen
         raise err.located(source) from None
 
 
+def scenario_from_stored(text: str, arrays: Mapping[str, Any] | None, source: str = "<inline>") -> Scenario:
+    """The scenario a trace or checkpoint stores (:func:`orbitsim.scenario.serialize.stored_form`):
+    its resolved text, and for a large scenario the per-body rows as arrays beside it.
+
+    Raises
+    ------
+    ScenarioError
+        For text or arrays that do not make a valid scenario (a missing or misshapen array names
+        its dataset).
+    """
+    doc, _ = parse_yaml(text, source)
+    if arrays is None:
+        return scenario_from_dict(doc, source)
+    if not isinstance(doc, Mapping) or "bodies" in doc:
+        raise ScenarioError("the text beside the stored bodies must be a mapping without bodies", file=source)
+    doc = dict(doc)
+    try:
+        given = _stored_bodies(arrays)
+        if isinstance(doc.get("integrator_state"), Mapping):
+            doc["integrator_state"] = {**doc["integrator_state"],
+                                       **{k: arrays[k] for k in ("mapping_positions", "mapping_velocities")}}
+        return _build(doc, source, "scenario", given)
+    except KeyError as err:
+        raise ScenarioError(f"the stored bodies lack the dataset {err}", file=source) from None
+    except ScenarioError as err:
+        raise err.located(source) from None
+
+
+def _stored_bodies(arrays: Mapping[str, Any]) -> BodySet:
+    """The bodies of a stored scenario's arrays (names, m, x, v and maybe r), as the reader makes them."""
+    import numpy as np
+
+    names = [n.decode() if isinstance(n, bytes) else str(n) for n in np.asarray(arrays["names"]).tolist()]
+    n = len(names)
+    m, x, v = (np.asarray(arrays[k], dtype=np.float64) for k in ("m", "x", "v"))
+    if m.shape != (n,) or x.shape != (n, 3) or v.shape != (n, 3):
+        raise ScenarioError(f"the stored bodies' arrays do not fit {n} names (m {m.shape}, x {x.shape}, v {v.shape})")
+    bodies = BodySet()
+    keys = [f"bodies[{i}]" for i in range(n)]
+    bodies.add(names, m, x, v, keys, keys)
+    if "r" in arrays:
+        r = np.asarray(arrays["r"], dtype=np.float64)
+        if r.shape != (n,):
+            raise ScenarioError(f"the stored radii have shape {r.shape}, expected ({n},)")
+        bodies.radii = dict(enumerate(r.tolist()))
+    return bodies
+
+
 def _read_integrator(top: Fields) -> tuple[str, dict[str, Any]]:
     """``integrator: name`` or ``integrator: {name: ..., <settings>}``."""
     value = top.raw("integrator")
@@ -157,7 +207,7 @@ def _read_integrator(top: Fields) -> tuple[str, dict[str, Any]]:
                         f"{describe(value)}", key="integrator")
 
 
-def _build(doc: Any, source: str, default_name: str) -> Scenario:
+def _build(doc: Any, source: str, default_name: str, given: BodySet | None = None) -> Scenario:
     from orbitsim.units import UNIT_SYSTEMS
 
     if doc is None:
@@ -168,32 +218,35 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
     units = top.string("units", "nbody", choices=list(UNIT_SYSTEMS), fold_case=True)
     G = top.number("G", UNIT_SYSTEMS[units].G, positive=True)
     integrator, settings = _read_integrator(top)
-    dt = check_dt(top.number("dt"))  # < 0 runs backwards (orbitsim.scenario.direction)
+    times = _Times(units, G)  # dt, t_start, t_end and output.interval: numbers, or "1 day", "10 yr"
+    dt = check_dt(times.read(top, "dt"))  # < 0 runs backwards (orbitsim.scenario.direction)
     output = Fields(top.raw("output", {}), "output", OUTPUT_KEYS, "output section")
     output.one_of("every", "interval", required=False)
-    t_start = check_t_start(top.raw("t_start", 0.0))  # the run's clock starts here; t_end stays absolute
+    t_start = check_t_start(times.read(top, "t_start", 0.0))  # the run's clock starts here; t_end stays absolute
     t_end = None
-    if adaptive_integrator(integrator, settings):
-        steps, t_end = _adaptive_grid(top, output, integrator, t_start)
+    adaptive = adaptive_integrator(integrator, settings)
+    if adaptive:
+        steps, t_end = _adaptive_grid(top, output, integrator, t_start, times)
     elif top.one_of("steps", "t_end") == "steps":
         steps = top.integer("steps", minimum=1, steps=True)
     else:
-        t_end = check_t_end(top.number("t_end"), dt, t_start)  # before t_start with a negative dt
+        t_end = check_t_end(times.read(top, "t_end"), dt, t_start)  # before t_start with a negative dt
         steps = resolve_steps(t_end, dt, t_start)[0]
     softening = top.number("softening", 0.0, minimum=0.0)
     frame = top.string("frame", "as_given", choices=FRAMES)
     name = top.string("name", default_name)
     description = top.string("description", "")
     every = output.integer("every", None, minimum=1, steps=True)
-    interval = output.number("interval", None, positive=True)
+    interval = times.read(output, "interval", None, positive=True)
     positions = output.boolean("positions", None)
     elements = output.boolean("elements", False)
     primary = output.string("primary", "heaviest")
     if output.has("primary") and not elements:
         raise output.error("primary", "output.primary chooses the primary of the recorded orbital elements: it "
                                       "needs output.elements: true")
-    checkpoint_every, checkpoint_seconds = _read_checkpoint(output)
-    bodies = read_bodies(top, G, units)
+    grid_step = _grid_step(dt, t_end, t_start, interval, adaptive)
+    checkpoint_every, checkpoint_seconds = _read_checkpoint(output, times, grid_step)
+    bodies = read_bodies(top, G, units) if given is None else given  # given: a stored scenario's arrays
     m, x, v = bodies.arrays()
     radii = bodies.radii_array()
     events = read_events(top, radii)
@@ -209,11 +262,28 @@ def _build(doc: Any, source: str, default_name: str) -> Scenario:
                         forces=top.raw("forces", ()), t_start=t_start,
                         integrator_state=top.raw("integrator_state", None))
     scenario.remember_origins(bodies.origins)
-    scenario.remember_input(bodies.notes)  # angle unit and axes, for `orbitsim validate`
+    renamed = rebound_note(integrator, settings)  # REBOUND's whfast, leapfrog with order: what they became
+    scenario.remember_input([renamed, *bodies.notes] if renamed else bodies.notes)  # for `orbitsim validate`
     return scenario
 
 
-def _adaptive_grid(top: Fields, output: Fields, integrator: str, t_start: float) -> tuple[int, float]:
+class _Times:
+    """Reads the keys that hold a time in the scenario's units: a number as it is (the same bits), or
+    a number with a unit, ``"1 day"`` or ``"10 yr"`` (:func:`orbitsim.scenario.quantities.scenario_time`)."""
+
+    def __init__(self, units: str, G: float) -> None:
+        self.units, self.G = units, G
+
+    def read(self, fields: Fields, name: str, default: Any = MISSING, *, positive: bool = False) -> Any:
+        """The time at key ``name`` of ``fields`` as a float (``default`` when it is not given)."""
+        value = fields.raw(name, default)
+        if not isinstance(value, str):
+            return fields.number(name, default, positive=positive)
+        time = scenario_time(value, self.units, self.G, fields.key(name))
+        return check_number(time, fields.key(name), positive=positive)
+
+
+def _adaptive_grid(top: Fields, output: Fields, integrator: str, t_start: float, times: _Times) -> tuple[int, float]:
     """An adaptive scheme's output intervals from ``t_start`` and ``t_end``: it needs ``t_end``, and
     samples by ``output.interval``."""
     if top.has("steps") or not top.has("t_end"):
@@ -222,20 +292,47 @@ def _adaptive_grid(top: Fields, output: Fields, integrator: str, t_start: float)
     if output.has("every"):
         raise output.error("every", f"{integrator} chooses its own steps, so samples are taken by time: give "
                                     "output.interval instead of output.every")
-    t_end = check_adaptive_t_end(top.number("t_end"), t_start)
+    t_end = check_adaptive_t_end(times.read(top, "t_end"), t_start)
     span = run_span(t_end, t_start)
-    interval = output.number("interval", None, positive=True)
+    interval = times.read(output, "interval", None, positive=True)
     return resolve_grid(span, interval if interval is not None else span / DEFAULT_SAMPLES), t_end
 
 
-def _read_checkpoint(output: Fields) -> tuple[int | None, float | None]:
-    """``output.checkpoint: {every: K, seconds: S}`` (either or both); absent means no checkpoints."""
+def _grid_step(dt: float, t_end: float | None, t_start: float, interval: float | None, adaptive: bool) -> float:
+    """How much time one step of the run's grid (what ``output.checkpoint.every`` counts) covers: |dt|, or
+    an adaptive run's output interval."""
+    if not adaptive:
+        return abs(dt)
+    return interval if interval is not None else run_span(float(t_end), t_start) / DEFAULT_SAMPLES
+
+
+def _read_checkpoint(output: Fields, times: _Times, grid_step: float) -> tuple[int | None, float | None]:
+    """``output.checkpoint: {every: K, seconds: S}`` (either or both); absent means no checkpoints.
+
+    ``every`` may be a time with a unit (``"100 yr"``): the whole steps of the grid that fit in it.
+    ``seconds`` may be a wall-clock duration with a unit (``"10 min"``)."""
     if not output.has("checkpoint"):
         return None, None
     section = Fields(output.raw("checkpoint"), "output.checkpoint", CHECKPOINT_KEYS, "checkpoint section")
-    every = section.integer("every", None, minimum=1, steps=True)
-    seconds = section.number("seconds", None, positive=True)
+    if isinstance(section.raw("every", None), str):
+        every = _checkpoint_steps(times.read(section, "every", positive=True), grid_step, section.key("every"),
+                                  section.raw("every"))
+    else:
+        every = section.integer("every", None, minimum=1, steps=True)
+    if isinstance(section.raw("seconds", None), str):
+        seconds = wall_seconds(section.raw("seconds"), section.key("seconds"))
+    else:
+        seconds = section.number("seconds", None, positive=True)
     if every is None and seconds is None:
         raise ScenarioError("give every (steps) and/or seconds (wall time) between checkpoints",
                             key="output.checkpoint")
     return every, seconds
+
+
+def _checkpoint_steps(span: float, grid_step: float, key: str, given: str) -> int:
+    """The whole grid steps in ``span`` (a ratio within 1e-9 of a whole number counts as whole, as for t_end)."""
+    steps = whole_count(span / grid_step)
+    if steps < 1:
+        raise ScenarioError(f"{given!r} is shorter than one step ({grid_step:g} in the scenario's time unit): "
+                            "checkpoint less often", key=key)
+    return check_count(steps, key)

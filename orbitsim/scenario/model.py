@@ -197,14 +197,21 @@ class Scenario:
             self._set(attr, value)
 
     def _validate_integrator(self) -> None:
+        from orbitsim.integrators.rebound_names import leapfrog_order
         from orbitsim.integrators.registry import UnknownIntegratorError, get_module
 
+        settings = self.integrator_settings or {}
+        name = self.integrator
+        if isinstance(settings, Mapping):  # REBOUND's leapfrog with `order: 4` is leapfrog4
+            try:
+                name, settings = leapfrog_order(name, dict(settings))
+            except ValueError as err:
+                raise ScenarioError(str(err), key="integrator.order") from None
         try:
-            module = get_module(self.integrator)
+            module = get_module(name)
         except UnknownIntegratorError as err:
             raise ScenarioError(str(err), key="integrator") from None
         self._set("integrator", module.SPEC.name)
-        settings = self.integrator_settings or {}
         if not isinstance(settings, Mapping):
             raise ScenarioError(f"integrator settings must be a mapping, got {describe(settings)}",
                                 key="integrator")
@@ -344,8 +351,32 @@ class Scenario:
 
     @property
     def sha256(self) -> str:
-        """Hex SHA-256 of :meth:`to_yaml` (UTF-8): identifies what was run, not where it came from."""
-        return hashlib.sha256(self.to_yaml().encode("utf-8")).hexdigest()
+        """Hex SHA-256 of :meth:`to_yaml` (UTF-8): identifies what was run, not where it came from.
+
+        Computed once; a large scenario's text is hashed line by line rather than built whole.
+        """
+        cached = self.__dict__.get("_sha256")
+        if cached is None:
+            if "_yaml" in self.__dict__ or self.stored_form()[1] is None:  # the text is at hand, or small
+                cached = hashlib.sha256(self.to_yaml().encode("utf-8")).hexdigest()
+            else:
+                from orbitsim.scenario.serialize import scenario_text_sha256
+
+                cached = scenario_text_sha256(self)
+            self._set("_sha256", cached)
+        return cached
+
+    def stored_form(self) -> tuple[str, dict[str, np.ndarray] | None]:
+        """What a trace or a checkpoint stores: the whole :meth:`to_yaml` text, or for a large
+        scenario the text without its per-body rows and the rows as arrays (see
+        :func:`orbitsim.scenario.serialize.stored_form`). Built once and kept."""
+        cached = self.__dict__.get("_stored")
+        if cached is None:
+            from orbitsim.scenario.serialize import stored_form
+
+            cached = stored_form(self)
+            self._set("_stored", cached)
+        return cached
 
     def with_overrides(self, **changes: Any) -> Scenario:
         """A new, re-validated Scenario with some fields replaced.
@@ -364,6 +395,10 @@ class Scenario:
         new = dataclasses.replace(self, **fields)
         if not {"names", "masses", "positions", "velocities"} & fields.keys():
             new.remember_origins(self.origins)
+        if fields.keys() <= {"source"}:  # not part of the text: its hash and stored form stay (seconds at 10^6 bodies)
+            for kept in ("_yaml", "_sha256", "_stored"):
+                if kept in self.__dict__:
+                    new._set(kept, self.__dict__[kept])
         return new
 
     def remember_origins(self, origins: Any) -> None:

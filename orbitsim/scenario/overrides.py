@@ -40,6 +40,7 @@ def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, 
         if key not in OVERRIDABLE:
             raise unknown_key_error(key, "", OVERRIDABLE).located(scenario.source)
     try:
+        _convert_times(scenario, changes)
         _resolve_integrator_change(scenario, changes)
         _resolve_time_change(scenario, changes)
     except ScenarioError as err:
@@ -51,6 +52,21 @@ def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, 
     elif "interval" in changes:
         changes["every"] = None
     return changes
+
+
+#: Overridable fields that hold a time, and the key an error about each names.
+_TIME_FIELDS = {"dt": "dt", "t_start": "t_start", "t_end": "t_end", "interval": "output.interval"}
+
+
+def _convert_times(scenario: Scenario, changes: dict[str, Any]) -> None:
+    """Times given with a unit (``dt="1 day"``, from ``run --dt "1 day"``) in the scenario's units; numbers
+    are left as they are."""
+    from orbitsim.scenario.quantities import scenario_time
+
+    G = changes.get("G", scenario.G)
+    for name, key in _TIME_FIELDS.items():
+        if isinstance(changes.get(name), str):
+            changes[name] = scenario_time(changes[name], scenario.units, G, key)
 
 
 def _resolve_integrator_change(scenario: Scenario, changes: dict[str, Any]) -> None:

@@ -1,4 +1,5 @@
-"""Numbers a user writes with a unit: ``m: "1 Mjup"``, ``a: "7000 km"``, ``inc: "90 deg"``.
+"""Numbers a user writes with a unit: ``m: "1 Mjup"``, ``a: "7000 km"``, ``inc: "90 deg"``, ``dt: "1 day"``,
+a disc's ``density: "3 g/cm3"``.
 
 A plain number is returned as it is (the same bits, so existing scenarios resolve unchanged).
 A string ``"<number> <unit>"`` is converted into the scenario's unit system with
@@ -21,7 +22,8 @@ from typing import Any
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, describe
 
-__all__ = ["ANGLE_UNITS", "UNIT_NAMES", "QuantityReader", "parse_angle", "unit_factor"]
+__all__ = ["ANGLE_UNITS", "UNIT_NAMES", "QuantityReader", "parse_angle", "scenario_time", "unit_factor",
+           "wall_seconds"]
 
 #: Lower-cased unit name -> (kind, astropy unit expression). Kinds: mass, length, time.
 UNIT_NAMES: dict[str, tuple[str, str]] = {
@@ -41,21 +43,31 @@ UNIT_NAMES: dict[str, tuple[str, str]] = {
 }
 #: What each kind of key accepts, for error messages.
 _KIND_UNITS = {"mass": "kg, Msun, Mjup, Mearth", "length": "m, km, au, Rsun, Rjup, Rearth, pc",
-               "speed": "km/s, m/s, au/day, au/yr", "time": "s, h, day, yr"}
+               "speed": "km/s, m/s, au/day, au/yr", "time": "s, min, h, day, yr, kyr, Myr",
+               "density": "g/cm3, kg/m3, Msun/au3"}
 ANGLE_UNITS = ("deg", "rad")
 _ANGLE_NAMES = {"deg": "deg", "degree": "deg", "degrees": "deg", "rad": "rad", "radian": "rad", "radians": "rad"}
-_QUANTITY_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z_/ ]+?)\s*$")
+# The unit starts with a letter; digits, ^ and * follow only for a density's cube (g/cm3, kg/m^3).
+_QUANTITY_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z_][A-Za-z0-9_/^* ]*?)\s*$")
+#: The cube of a length in a density's unit: ``cm3``, ``cm^3``, ``cm**3``.
+_CUBE_RE = re.compile(r"^([a-z_]+)(?:3|\^3|\*\*3)$")
 #: Base units of each system: (length, mass, time in astropy's expressions, time factor).
 #: au-yr-msun's year is the Gaussian year 2 pi / k days (orbitsim.units), in which G = 4 pi^2.
 _SYSTEM_BASES = {"au-yr-msun": ("au", "M_sun", "day", "gaussian_year"), "au-day-msun": ("au", "M_sun", "day", None),
                  "si": ("m", "kg", "s", None)}
 
 
-def _split(text: str, key: str) -> tuple[float, str]:
+#: An example of a number with a unit of each kind, for error messages.
+_EXAMPLES = {"mass": '"1 Mjup"', "length": '"7000 km"', "speed": '"30 km/s"', "time": '"10 yr" or "1 day"',
+             "density": '"2 g/cm3"', "angle": '"90 deg"'}
+
+
+def _split(text: str, key: str, kind: str | None = None) -> tuple[float, str]:
     """``"1.5 Mjup"`` -> (1.5, "mjup"); anything else is an error naming ``key``."""
     match = _QUANTITY_RE.match(text)
     if not match:
-        raise ScenarioError(f"expected a number or a number with a unit such as \"1 Mjup\" or \"7000 km\", got "
+        example = _EXAMPLES.get(kind or "", '"1 Mjup" or "7000 km"')
+        raise ScenarioError(f"expected a number or a number with a unit such as {example}, got "
                             f"{describe(text)}", key=key)
     return float(match.group(1)), "".join(match.group(2).split()).casefold()
 
@@ -67,6 +79,13 @@ def unit_factor(unit: str, kind: str, units: str, key: str) -> float:
         if not time:
             raise ScenarioError(f"a speed needs a unit such as km/s, got {unit!r}", key=key)
         return unit_factor(length, "length", units, key) / unit_factor(time, "time", units, key)
+    if kind == "density":
+        mass, _, volume = unit.partition("/")
+        cube = _CUBE_RE.match(volume)
+        if cube is None:
+            raise ScenarioError(f"a density needs a mass over a length cubed, such as g/cm3 or kg/m3, got {unit!r}",
+                                key=key)
+        return unit_factor(mass, "mass", units, key) / unit_factor(cube.group(1), "length", units, key) ** 3
     found = UNIT_NAMES.get(unit)
     if found is None or found[0] != kind:
         what = "unknown unit" if found is None else f"{unit!r} is a {found[0]}, not a"
@@ -111,7 +130,7 @@ class QuantityReader:
         """``value`` in the scenario's units: a number as is, or ``"<number> <unit>"`` converted."""
         if not isinstance(value, str):
             return check_number(value, key, minimum=minimum, positive=positive)
-        number, unit = _split(value, key)
+        number, unit = _split(value, key, kind)
         if self.own_G and kind in ("speed", "time"):
             raise ScenarioError(f"this scenario sets its own G, so its time unit is not the one units: {self.units} "
                                 f"names and {value!r} cannot be converted: give a number", key=key)
@@ -137,10 +156,30 @@ def parse_angle(value: Any, key: str, angles: str) -> float:
     :func:`math.degrees` (the elements code converts back with :func:`math.radians`).
     """
     if isinstance(value, str):
-        number, unit = _split(value, key)
+        number, unit = _split(value, key, "angle")
         unit = _ANGLE_NAMES.get(unit, "")
         if not unit:
             raise ScenarioError(f"unknown angle unit in {value!r}; use deg or rad (any case)", key=key)
         return number if unit == "deg" else math.degrees(number)
     number = check_number(value, key)
     return number if angles == "deg" else math.degrees(number)
+
+
+def scenario_time(value: Any, units: str, G: float, key: str) -> float:
+    """A time in a scenario's units: a number as it is (same bits), ``"10 yr"`` converted.
+
+    ``units`` and ``G`` are the scenario's: a ``G`` other than the unit system's makes its time
+    unit another one, so a time with a unit is then refused (as for :class:`QuantityReader`).
+    """
+    from orbitsim.units import UNIT_SYSTEMS
+
+    own_G = units in UNIT_SYSTEMS and G != UNIT_SYSTEMS[units].G
+    return QuantityReader(units, own_G=own_G).number(value, key, "time")
+
+
+def wall_seconds(value: Any, key: str) -> float:
+    """A wall-clock duration in seconds (> 0): a number of seconds, or ``"10 min"``, ``"2 h"``.
+
+    Wall time is SI seconds whatever the scenario's units, so this converts even in ``nbody``.
+    """
+    return QuantityReader("si").number(value, key, "time", positive=True)

@@ -10,18 +10,26 @@ every scenario written before they existed stay the same.
 
 from __future__ import annotations
 
+import hashlib
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from orbitsim.scenario.yamlio import dump_value, format_float
 
 if TYPE_CHECKING:
     from orbitsim.scenario.model import Scenario
 
-__all__ = ["scenario_to_dict", "scenario_to_yaml"]
+__all__ = ["BODIES_GROUP", "BODY_ARRAYS", "STORED_TEXT_MAX", "scenario_text_sha256", "scenario_to_dict",
+           "scenario_to_yaml", "scenario_yaml_lines", "stored_form"]
+
+_STATE_ARRAYS = ("mapping_positions", "mapping_velocities")
 
 
-def scenario_to_dict(s: Scenario) -> dict[str, Any]:
-    """The fully resolved scenario as plain Python (what :func:`scenario_to_yaml` writes)."""
+def scenario_to_dict(s: Scenario, bodies: bool = True) -> dict[str, Any]:
+    """The fully resolved scenario as plain Python (what :func:`scenario_to_yaml` writes); without
+    the ``bodies`` list when ``bodies`` is false (a large scenario's rows are written one by one)."""
     integrator: Any = s.integrator
     if s.integrator_settings:
         integrator = {"name": s.integrator, **s.integrator_settings}
@@ -35,12 +43,6 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
     if s.checkpoints:
         output["checkpoint"] = {k: v for k, v in (("every", s.checkpoint_every), ("seconds", s.checkpoint_seconds))
                                 if v is not None}
-    bodies = []
-    for k, (name, m, x, v) in enumerate(zip(s.names, s.masses, s.positions, s.velocities, strict=True)):
-        body = {"name": name, "m": float(m), "x": [float(c) for c in x], "v": [float(c) for c in v]}
-        if s.radii is not None:
-            body["r"] = float(s.radii[k])
-        bodies.append(body)
     # t_start only when set, so a scenario without it keeps its text and SHA-256 from before t_start existed.
     start = {"t_start": s.t_start} if s.t_start else {}
     doc = {"name": s.name, "description": s.description, "units": s.units, "G": s.G, "integrator": integrator,
@@ -51,46 +53,126 @@ def scenario_to_dict(s: Scenario) -> dict[str, Any]:
         doc["events"] = s.events.to_dict()
     if s.forces:  # resolved: c, source and spin axis explicit, so the text says what ran
         doc["forces"] = [dict(entry) for entry in s.forces]
+    if bodies:
+        doc["bodies"] = _body_dicts(s)
     if s.integrator_state is not None:  # after the bodies it belongs to (orbitsim.scenario.integrator_state)
         from orbitsim.scenario.integrator_state import state_to_dict
 
-        doc["bodies"] = bodies
         doc["integrator_state"] = state_to_dict(s.integrator_state)
-        return doc
-    doc["bodies"] = bodies
     return doc
+
+
+def _body_dicts(s: Scenario) -> list[dict[str, Any]]:
+    bodies = []
+    for k, (name, m, x, v) in enumerate(zip(s.names, s.masses, s.positions, s.velocities, strict=True)):
+        body = {"name": name, "m": float(m), "x": [float(c) for c in x], "v": [float(c) for c in v]}
+        if s.radii is not None:
+            body["r"] = float(s.radii[k])
+        bodies.append(body)
+    return bodies
 
 
 def scenario_to_yaml(s: Scenario) -> str:
     """The fully resolved scenario as YAML text; loading it reproduces the same bits."""
-    doc = scenario_to_dict(s)
-    del doc["bodies"]  # written row by row below: far faster than the generic writer
+    return "\n".join(scenario_yaml_lines(s)) + "\n"
+
+
+def scenario_text_sha256(s: Scenario) -> str:
+    """Hex SHA-256 of :func:`scenario_to_yaml`'s UTF-8 text, hashed line by line: a large
+    scenario's text (176 MB for 10^6 bodies) is never held in memory at once."""
+    digest = hashlib.sha256()
+    for line in scenario_yaml_lines(s):
+        digest.update(line.encode("utf-8"))
+        digest.update(b"\n")
+    return digest.hexdigest()
+
+
+def scenario_yaml_lines(s: Scenario) -> Iterator[str]:
+    """The lines of :func:`scenario_to_yaml` (without their newlines), one body per line."""
+    doc = scenario_to_dict(s, bodies=False)
     state = doc.pop("integrator_state", None)
-    lines = ["# orbitsim scenario, fully resolved: explicit Cartesian bodies, whole steps."]
+    yield from _head_lines(doc)
+    yield "bodies:"
+    yield from _body_lines(s)
+    if state is not None:
+        yield from _state_head_lines(state)
+        for k in _STATE_ARRAYS:
+            yield f"  {k}:"
+            yield from (f"    - [{', '.join(format_float(c) for c in row)}]" for row in state[k])
+
+
+def _head_lines(doc: dict[str, Any]) -> Iterator[str]:
+    """Everything before ``bodies:``, one top-level key (or section entry) per line."""
+    yield "# orbitsim scenario, fully resolved: explicit Cartesian bodies, whole steps."
     for key, value in doc.items():
         if key in ("output", "events"):
-            lines.append(f"{key}:")
-            lines.extend(f"  {k}: {dump_value(v)}" for k, v in value.items())
+            yield f"{key}:"
+            yield from (f"  {k}: {dump_value(v)}" for k, v in value.items())
         elif key == "forces":
-            lines.append(f"{key}:")
-            lines.extend(f"  - {dump_value(entry)}" for entry in value)
+            yield f"{key}:"
+            yield from (f"  - {dump_value(entry)}" for entry in value)
         else:
-            lines.append(f"{key}: {dump_value(value)}")
-    lines.append("bodies:")
+            yield f"{key}: {dump_value(value)}"
+
+
+def _body_lines(s: Scenario) -> Iterator[str]:
+    """One flow mapping per body, written row by row: far faster than the generic writer."""
     f = format_float
     radii = s.radii.tolist() if s.radii is not None else None
     for k, (name, m, x, v) in enumerate(zip(s.names, s.masses.tolist(), s.positions.tolist(), s.velocities.tolist(),
                                             strict=True)):
         r = f", r: {f(radii[k])}" if radii is not None else ""
-        lines.append(f"  - {{name: {dump_value(name)}, m: {f(m)}, x: [{f(x[0])}, {f(x[1])}, {f(x[2])}], "
-                     f"v: [{f(v[0])}, {f(v[1])}, {f(v[2])}]{r}}}")
+        yield (f"  - {{name: {dump_value(name)}, m: {f(m)}, x: [{f(x[0])}, {f(x[1])}, {f(x[2])}], "
+               f"v: [{f(v[0])}, {f(v[1])}, {f(v[2])}]{r}}}")
+
+
+def _state_head_lines(state: dict[str, Any]) -> Iterator[str]:
+    yield "# wisdom_holman's own coordinates at this state, so the run continues bit for bit; used"
+    yield "# only while every bit above that they belong to (`of`) is unchanged"
+    yield "integrator_state:"
+    yield from (f"  {k}: {dump_value(v)}" for k, v in state.items() if k not in _STATE_ARRAYS)
+
+
+# -- the stored form: what a trace or a checkpoint keeps ---------------------------------------
+
+#: A trace or checkpoint keeps the resolved text whole (its ``scenario`` attribute) up to this many
+#: bytes, which every scenario of up to ~1,000 bodies fits (the bundled plummer_1k's is 176 kB).
+#: Beyond it the per-body rows are datasets (:data:`BODY_ARRAYS`) and the attribute holds the rest:
+#: a 10^6-body scenario's text is 176 MB, which HDF5 metadata is not made for, and which took
+#: minutes to parse back on every resume.
+STORED_TEXT_MAX = 256 * 1024
+#: The shortest a body's row can be (``  - {name: "a", m: 0.0, x: [0.0, 0.0, 0.0], v: [...]}``):
+#: a scenario with more bodies than ``STORED_TEXT_MAX`` over this is stored as datasets unwritten.
+_MIN_ROW_BYTES = 60
+#: The datasets of the stored form, by name: what each holds, as the text's rows would.
+BODY_ARRAYS = ("names", "m", "x", "v", "r", "mapping_positions", "mapping_velocities")
+#: The HDF5 group beside the stored text that holds the rows (:data:`orbitsim.io.stored_scenario.SCENARIO_BODIES`).
+BODIES_GROUP = "scenario_bodies"
+#: The line that stands for the bodies in the stored form's text.
+BODIES_IN_DATASETS = "# bodies: {n} rows, in the datasets {group}/{{{names}}} beside this text (one row per body)"
+
+
+def stored_form(s: Scenario) -> tuple[str, dict[str, np.ndarray] | None]:
+    """The scenario as a trace or checkpoint stores it: ``(text, None)`` with the whole resolved
+    text when it is at most :data:`STORED_TEXT_MAX` bytes, else ``(text, arrays)``: the text without
+    the per-body rows (a comment in their place) and the rows as arrays by :data:`BODY_ARRAYS` name
+    (``r`` only with radii, the ``mapping_*`` only with an integrator state).
+
+    Either form loads back to the same bits (:func:`orbitsim.scenario.loader.scenario_from_stored`),
+    and the scenario's SHA-256 is the whole text's in both.
+    """
+    if s.n_bodies * _MIN_ROW_BYTES <= STORED_TEXT_MAX:
+        text = s.to_yaml()
+        if len(text.encode("utf-8")) <= STORED_TEXT_MAX:
+            return text, None
+    arrays: dict[str, np.ndarray] = {"names": np.array(s.names, dtype=object), "m": s.masses, "x": s.positions,
+                                     "v": s.velocities}
+    if s.radii is not None:
+        arrays["r"] = s.radii
+    doc = scenario_to_dict(s, bodies=False)
+    state = doc.pop("integrator_state", None)
+    lines = [*_head_lines(doc), BODIES_IN_DATASETS.format(n=s.n_bodies, group=BODIES_GROUP, names=", ".join(arrays))]
     if state is not None:
-        lines.append("# wisdom_holman's own coordinates at this state, so the run continues bit for bit; used")
-        lines.append("# only while every bit above that they belong to (`of`) is unchanged")
-        lines.append("integrator_state:")
-        lines.extend(f"  {k}: {dump_value(v)}" for k, v in state.items() if k not in ("mapping_positions",
-                                                                                   "mapping_velocities"))
-        for k in ("mapping_positions", "mapping_velocities"):
-            lines.append(f"  {k}:")
-            lines.extend(f"    - [{', '.join(f(c) for c in row)}]" for row in state[k])
-    return "\n".join(lines) + "\n"
+        lines += [*_state_head_lines(state), f"  # {', '.join(_STATE_ARRAYS)}: in the datasets {BODIES_GROUP}/<name>"]
+        arrays.update({k: np.asarray(s.integrator_state[k], dtype=np.float64) for k in _STATE_ARRAYS})
+    return "\n".join(lines) + "\n", arrays

@@ -24,7 +24,7 @@ from typing import Any
 from orbitsim.scenario.errors import ScenarioError
 
 __all__ = ["MAX_STEPS", "adaptive_integrator", "check_t_start", "resolve_grid", "resolve_steps", "run_span",
-           "steps_limit_error"]
+           "steps_limit_error", "whole_count"]
 
 #: The most steps a scenario may count: 2**53. A sample's time is ``step * dt`` in float64, which
 #: holds every whole number exactly only up to 2**53; beyond it two steps can share one time (and
@@ -101,6 +101,17 @@ def resolve_grid(t_end: float, interval: float) -> int:
     if nearest >= 1 and abs(ratio - nearest) <= _WHOLE_STEPS_RTOL * ratio:
         return int(nearest)
     return max(1, math.ceil(ratio))
+
+
+def whole_count(ratio: float) -> int:
+    """How many whole steps a ``ratio`` of a time to a step holds: rounded down, except that a ratio within
+    1e-9 (relative) of a whole number is that number, as for ``t_end / dt``; 0 for a ratio that is not finite."""
+    if not math.isfinite(ratio):
+        return 0
+    nearest = round(ratio)
+    if nearest >= 1 and abs(ratio - nearest) <= _WHOLE_STEPS_RTOL * ratio:
+        return int(nearest)
+    return max(0, math.floor(ratio))
 
 
 def _whole_steps(t_end: float, dt: float, ratio: float, what: str = "t_end") -> tuple[int, bool]:
