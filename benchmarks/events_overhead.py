@@ -16,6 +16,13 @@ noisy; only same-run ratios mean anything).
 ``--baseline DIR`` instead times runs *without* events in this checkout and in another one (say,
 the commit before events existed), alternating processes, so that "a run without events is as
 fast as before" is measured, not assumed.
+
+``--sampled`` times what a run *without* events adds in ``orbitsim run``: the look at each body's
+orbital timescale between the jitted calls (:mod:`orbitsim.events.sampled`). The same scenario (a
+softened Plummer sphere of N bodies, a sample every 100 steps, no positions) runs through
+:func:`orbitsim.runner.run_scenario` with the look and with it switched off, round-robin, and the
+table shows the median ratio and the share of the wall time the looks took (timed inside the
+same runs).
 """
 
 from __future__ import annotations
@@ -112,14 +119,61 @@ def baseline(other: str, sizes: list[int], steps: int, repeats: int) -> None:
               f"{statistics.median(ratios):.3f} (rounds: {', '.join(f'{r:.3f}' for r in ratios)})")
 
 
+def sampled(sizes: list[int], steps: int, repeats: int) -> None:
+    """``orbitsim run`` without events, with and without the timescale look, round-robin."""
+    import tempfile
+    from pathlib import Path
+
+    import orbitsim.events.sampled as look
+    from orbitsim.runner import run_scenario
+    from orbitsim.scenario import scenario_from_dict
+
+    original, spent = look.StepCheck.look, [0.0]
+
+    def timed(self: object, sim: object) -> None:
+        start = time.perf_counter()
+        original(self, sim)
+        spent[0] += time.perf_counter() - start
+
+    look.StepCheck.look = timed  # type: ignore[method-assign]
+    make = look.step_check
+    with tempfile.TemporaryDirectory() as folder:
+        for n in sizes:
+            work = max(1000, steps // max(1, n * n // 25))
+            # a Plummer sphere (softened): the planets above span 1.6^N in radius, beyond a scenario's reach
+            sc = scenario_from_dict({"name": "s", "integrator": "verlet", "dt": DT, "steps": work, "softening": 0.01,
+                                     "output": {"every": 100, "positions": False},
+                                     "generator": {"kind": "plummer", "n": n, "seed": 1}})
+            times: dict[str, list[float]] = {"with the look": [], "without": []}
+            shares = []
+            for r in range(repeats + 1):  # round 0 compiles and warms up
+                for label in times:
+                    look.step_check = make if label == "with the look" else (lambda scenario, sim: None)
+                    spent[0] = 0.0
+                    summary = run_scenario(sc, Path(folder) / "s.h5", force=True, handle_signals=False)
+                    if r:
+                        times[label].append(summary.wall_time_s)
+                        if label == "with the look":
+                            shares.append(spent[0] / summary.wall_time_s)
+            look.step_check = make
+            ratio = statistics.median(a / b for a, b in zip(times["with the look"], times["without"], strict=True))
+            print(f"N = {n} ({work} steps, a sample every 100): with the look / without: median {ratio:.3f}; "
+                  f"the looks took {statistics.median(shares):.2%} of the run's wall time (median of {repeats})")
+    look.StepCheck.look = original  # type: ignore[method-assign]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, nargs="+", default=[5, 50, 500])
     parser.add_argument("--steps", type=int, default=200_000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--baseline", metavar="DIR", default=None)
+    parser.add_argument("--sampled", action="store_true",
+                        help="time the timescale look of a run without events (orbitsim.events.sampled)")
     args = parser.parse_args()
-    if args.baseline:
+    if args.sampled:
+        sampled(args.n, args.steps, args.repeats)
+    elif args.baseline:
         baseline(args.baseline, args.n, args.steps, args.repeats)
     else:
         table(args.n, args.steps, args.repeats)

@@ -60,6 +60,7 @@ class RunSummary:
     resumable: bool = False
     events: str = ""
     scheme_counters: dict[str, Any] | None = None  # an adaptive scheme's own steps (ias15)
+    unresolved_warning: str = ""  # a step too long for an orbit, seen at the samples of a run without events
     # A continued run (resume, run --from): where it started, and what the earlier parts took. The
     # totals above cover the whole run; the rate is this process's own work.
     steps_before: int = 0
@@ -108,6 +109,7 @@ class RunLoop:
         self.progress, self.on_chunk = progress, on_chunk
         self.start_point = start
         self.sim: Simulation | None = None
+        self.step_check: Any = None  # orbitsim.events.sampled.StepCheck, for a run without events
         self.counters_before: dict[str, Any] | None = None  # a continuation's scheme counters at its start
         self.samples = 0
         self.last_time = math.nan
@@ -142,6 +144,9 @@ class RunLoop:
         if stopper.requested():
             return
         self.sim = self._make_simulation(threads)
+        from orbitsim.events.sampled import step_check
+
+        self.step_check = step_check(self.scenario, self.sim)  # looks at the state between calls only
         self.counters_before = self._scheme_counters() if self.start_point is not None else None
         self.safe = True
         with stopper.critical():
@@ -217,6 +222,8 @@ class RunLoop:
             self.last_step = int(chunk.step[-1])
             if self.on_chunk:
                 self.on_chunk(self.sim, chunk)
+        if self.step_check is not None:
+            self.step_check.look(self.sim)
         if self.energy_failure is not None:  # |dE/E| is inf (or nan) from here: never a finite number
             bad = self.energy_failure[2]
             self.max_err = self._energy_error(np.array([bad])) if self.e0 is not None else math.nan
@@ -296,6 +303,9 @@ class RunLoop:
         scheme_counters = self._scheme_counters()
         if scheme_counters is not None:  # an adaptive scheme's own steps (accepted, rejected, force evaluations)
             self.sink.set_attrs(**{f"{self.sim.spec.name}_{key}": value for key, value in scheme_counters.items()})
+        unresolved = self.step_check.warning if self.step_check is not None else ""
+        if unresolved:
+            self.sink.set_attrs(unresolved_warning=unresolved)
         outcome = watcher.outcome(final_run=status != "interrupted") if watcher is not None else None
         self.sink.close(status, steps_done=steps_done, wall_time_s=wall, message=message, final=final,
                         events=outcome)
@@ -307,7 +317,8 @@ class RunLoop:
             resumable=status == "interrupted" and final is not None,
             events=outcome.summary(self.scenario.names) if outcome is not None else "",
             scheme_counters=scheme_counters, steps_before=self.start_point.checkpoint.steps_done if self.start_point
-            else 0, wall_before_s=self.checkpoints.prior_wall, scheme_counters_before=self.counters_before)
+            else 0, wall_before_s=self.checkpoints.prior_wall, scheme_counters_before=self.counters_before,
+            unresolved_warning=unresolved)
 
     def _scheme_counters(self) -> dict[str, Any] | None:
         """An adaptive scheme's own counts so far (None for a fixed-step scheme, or before the simulation)."""

@@ -77,11 +77,13 @@ def _check_output(scenario: Scenario, output: Path, force: bool, plan: SamplePla
     from orbitsim.checkpoint.sinks import check_side_files
 
     check_side_files(output, force)
-    from orbitsim.preflight import check_disk, check_initial_state
+    from orbitsim.preflight import check_disk, check_initial_state, check_overlaps
 
     # The checks `orbitsim validate` makes too (orbitsim.preflight): a first sample that is not
-    # finite, or a trace that does not fit, is refused before anything is written.
+    # finite, bodies that overlap with nothing to resolve it, or a trace that does not fit, is
+    # refused before anything is written.
     check_initial_state(scenario)
+    check_overlaps(scenario)
     check_disk(scenario, output.parent)
 
 

@@ -4,7 +4,8 @@ One place turns a scenario into the engine that steps it (its scheme and setting
 G, softening, the clock from ``t_start``, events, radii and forces), so that a run, a replay to a
 sample (:mod:`orbitsim.scenario.integrator_state`) and an animation of the scenario step the same
 bits. A new run from the scenario's own bodies also takes the scheme's own coordinates when the
-scenario carries them (``integrator_state``); a continuation passes the state it goes on from.
+scenario carries them (``integrator_state``), and resolves bodies that overlap at its start as
+``events.collisions`` says; a continuation passes the state it goes on from.
 """
 
 from __future__ import annotations
@@ -45,4 +46,6 @@ def scenario_simulation(scenario: Scenario, threads: int | None = None, *, eleme
         from orbitsim.scenario.integrator_state import install
 
         install(sim, sc)
+    if start is None and sim.watcher is not None:
+        sim.watcher.contacts_at_start(sim)  # bodies that overlap at t_start: a collision at step 0
     return sim

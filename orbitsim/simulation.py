@@ -270,9 +270,13 @@ class Simulation:
             raise SimulationError("sample steps must increase and start at or after the current step")
         self.diverged = False
         buffers = SampleBuffers(targets.max_samples(), self.n, record_positions)
+        watcher = self.watcher
+        if watcher is not None and watcher.halted is not None:
+            # halted before any step (bodies that overlapped at the start, resolve: halt)
+            yield self._halt_sample(buffers, keep_positions)
+            return
         budget = max(1, int(2e5 // max(1, self.n * self.n * self.spec.force_evals)))
         state = (self.pos, self.vel, self.acc, self.m)
-        watcher = self.watcher
         while targets.pending.size:
             call_targets, record = targets.plan_call(self.steps_done, budget)
             out = buffers.views(self.rows)

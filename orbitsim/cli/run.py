@@ -244,6 +244,8 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
                    f"{summary.samples} samples to {end} -> {summary.output}")
     if not quiet and summary.events:
         click.echo(f"{summary.name}: events: {summary.events}")
+    if summary.unresolved_warning and summary.status == "complete":  # a failure stays one line; the trace keeps it
+        warn(summary.unresolved_warning)  # a run without events: whose dt is far too long for an orbit
     err = summary.max_abs_energy_error
     # A dissipative force's note already said the energy error measures the force.
     if (summary.status == "complete" and math.isfinite(err) and err > UNTRUSTWORTHY_ENERGY_ERROR

@@ -23,7 +23,8 @@ def command(scenario: tuple[str, ...], resolved: bool, quiet: bool) -> None:
     error line naming the file, the key and what to fix. Exits 2 if any scenario is invalid.
 
     Every check `orbitsim run` makes before its first step is made here too: a first sample whose
-    energy or momentum would not be finite, and a trace that would not fit in the free space of
+    energy or momentum would not be finite, bodies that overlap at the start (closer than the sum
+    of their radii) without an events: collisions section, and a trace that would not fit in the free space of
     the current directory (where `run` writes by default). A run long enough to matter is timed
     on up to 1,000 of its own bodies, and the estimate printed ("time: about 2 s per step at
     N = 200000 on this machine, about 3.1 h in all").
@@ -60,9 +61,10 @@ def _preflight(scenario: object) -> int:
     """The checks `run` makes before stepping (:mod:`orbitsim.preflight`); returns the trace's bytes."""
     from pathlib import Path
 
-    from orbitsim.preflight import check_disk, check_initial_state
+    from orbitsim.preflight import check_disk, check_initial_state, check_overlaps
 
     check_initial_state(scenario)
+    check_overlaps(scenario)
     return check_disk(scenario, Path.cwd())
 
 

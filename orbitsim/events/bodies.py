@@ -74,9 +74,41 @@ def _pericentre_tau2(x, y, z, vx, vy, vz, gm):
     return two_body_tau2(rp, 0.0, 0.0, 0.0, math.sqrt(h2) / rp, 0.0, gm)
 
 
+#: Bits of a handoff's flags (:func:`check_unresolved`): the integrator took the whole step with its
+#: own adaptive sub-steps (TRACE's full_bs and full_ias15 pericentre steps); a massless body's orbit
+#: about body 0 is a Kepler drift, exact at any dt, with no term of its own in the step's other
+#: operators (TRACE's democratic heliocentric map, which never switches such a body either).
+HAND_WHOLE_STEP, HAND_MASSLESS_KEPLER = 1, 2
+
+
+@jit_inline
+def handed_over(handoff, i, k, m):
+    """Whether the motion of body ``i`` about ``k`` was not stepped with the fixed dt this step.
+
+    ``handoff = (pairs, bodies, flags)``, what a hybrid integrator integrated with its own
+    adaptive sub-steps: ``pairs`` (N, N) uint8, nonzero at [a, b] (a < b) for a pair whose mutual
+    force went to them; ``bodies`` (N,), nonzero for a body whose orbit about body 0 did; ``flags``,
+    :data:`HAND_WHOLE_STEP` | :data:`HAND_MASSLESS_KEPLER`.
+    """
+    pairs, bodies, flags = handoff
+    if flags & HAND_WHOLE_STEP:
+        return True
+    if i == 0 or k == 0:
+        other = k if i == 0 else i
+        return bodies[other] != 0 or (flags & HAND_MASSLESS_KEPLER != 0 and m[other] == 0.0)
+    return pairs[min(i, k), max(i, k)] != 0
+
+
 @jit
-def check_unresolved(watch, pos, vel, m, n_done, t0, dt):
-    """Flag bodies whose step is longer than eta tau about their dominant attractor."""
+def check_unresolved(watch, pos, vel, m, n_done, t0, dt, handoff):
+    """Flag bodies whose step is longer than eta tau about their dominant attractor.
+
+    ``handoff`` is None for a scheme that takes every step with the fixed dt. A hybrid scheme
+    passes what it integrated with adaptive sub-steps this step (:func:`handed_over`; TRACE's
+    close encounters and pericentre passages, :mod:`orbitsim.integrators.trace`): only what it
+    stepped with the fixed dt is judged, so the encounters it hands to Bulirsch-Stoer are not
+    reported as steps too long for them.
+    """
     fconf, prev, body, attractor = watch[1], watch[3], watch[4], watch[11]
     G, eta = fconf[F_G], fconf[F_ETA]
     n = pos.shape[1]
@@ -87,6 +119,10 @@ def check_unresolved(watch, pos, vel, m, n_done, t0, dt):
             continue
         if attractor[k] == i and (m[i] > m[k] or (m[i] == m[k] and i > k)):
             continue  # the pair is judged once, under its lighter body
+        if handoff is not None:
+            if handed_over(handoff, i, k, m):
+                body[i] &= ~B_UNRESOLVED  # resolved by the integrator's own sub-steps
+                continue
         x, y, z = pos[0, i] - pos[0, k], pos[1, i] - pos[1, k], pos[2, i] - pos[2, k]
         vx, vy, vz = vel[0, i] - vel[0, k], vel[1, i] - vel[1, k], vel[2, i] - vel[2, k]
         gm = G * (m[i] + m[k])

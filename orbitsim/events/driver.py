@@ -11,6 +11,10 @@ and, when the call stopped for it, resolves them:
 * **remove** (``escape.action: remove``): the body leaves the run;
 * **halt**: the run ends there (:attr:`Watcher.halted`).
 
+Bodies that already overlap in the state a run starts from are a collision at that step
+(:meth:`Watcher.contacts_at_start`), resolved by the same rule: the watch itself only checks the
+end of each step, and a body placed inside its star was never seen to touch it.
+
 The energy a merge or a removal takes out is the total energy just before minus just after
 (kinetic and every pair's potential, so the pairs with third bodies count too; REBOUND's
 ``track_energy_offset`` counts the merging pair only); it is added to ``energy_offset``, so
@@ -22,6 +26,7 @@ scenario's N: a removed body's position and velocity are NaN from its removal on
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -58,7 +63,63 @@ class Watcher:
         self.initial_radii = self.radii.copy()
         self.final_radii = self.radii.copy()
         self.halted: Event | None = None
+        # the scheme and its settings (defaults filled in), which word an unresolved step's fix
+        self.scheme = sim.spec.name
+        self.settings = {**getattr(sim.module, "SETTINGS", {}), **sim.settings}
         self.watch = build_watch(config, sim.m, self.radii, sim.G)
+        self._handoff: tuple[np.ndarray, np.ndarray, int] | None = None  # of a step whose merges are taken out
+        self._kept = np.arange(n)
+
+    # -- the state a run starts from ---------------------------------------------------------
+
+    def contacts_at_start(self, sim: Simulation) -> None:
+        """Log the pairs that overlap in ``sim``'s state as collisions at its step, and resolve
+        them by the scenario's rule: ``merge`` joins them before the first step, ``halt`` ends the
+        run there (:meth:`Simulation.chunks` then takes no step), ``log`` records each once and
+        leaves it open, so the first step's check continues the contact rather than logging it
+        again. A merge here leaves ``energy_offset`` at 0: the run's E0 is the merged system's.
+        Only for a new run: a continuation's state was checked when its run reached it.
+
+        Uses the watch's ``direct`` test on the same numbers (:func:`~.overlap.overlapping_pairs`),
+        whatever ``detect`` says: at the start there is no step whose segment could be drawn.
+        """
+        collisions = self.config.collisions
+        if collisions is None:
+            return
+        from orbitsim.events.overlap import overlapping_pairs
+
+        pairs = overlapping_pairs(sim.pos.T, self.radii)
+        if not pairs:
+            return
+        step, time = sim.steps_done, sim.time
+        events = []
+        for i, j, distance, reach in pairs:
+            dvx, dvy, dvz = (float(sim.vel[c, i] - sim.vel[c, j]) for c in range(3))
+            speed = math.sqrt(dvx * dvx + dvy * dvy + dvz * dvz)
+            events.append(Event("collision", step, step, time, int(self.alive[i]), int(self.alive[j]), distance, speed,
+                                reach))
+        if collisions.resolve == "merge":
+            events = self._resolve(sim, events)
+            # The run starts from the merged bodies: E0 is their energy, as for any first sample,
+            # and the merge's energy (the contact's binding, however deep) is no error of the run's.
+            self.offset = 0.0
+        elif collisions.resolve == "halt":
+            self._halt(events, step)
+        else:
+            self._open_contacts(pairs, step)
+        self.log.extend(events)
+
+    def _open_contacts(self, pairs: list[tuple[int, int, float, float]], step: int) -> None:
+        """Open a contact episode for each pair, as the jitted ``_contact`` does for a logged one."""
+        pair_i, pair_f, counts = self.watch[5], self.watch[6], self.watch[9]
+        for i, j, _, _ in pairs:
+            p = int(counts[wl.N_PAIRS])
+            if p >= pair_i.shape[0]:  # the table is sized for 4 episodes a body: only then
+                counts[wl.N_LOST] += 1
+                continue
+            pair_i[p, [wl.P_I, wl.P_J, wl.P_START, wl.P_LAST, wl.P_KIND]] = (i, j, step, step, wl.PAIR_CONTACT)
+            pair_f[p, [wl.PF_DMIN, wl.PF_TMIN, wl.PF_VMIN, wl.PF_LIMIT]] = (np.inf, np.nan, np.nan, np.nan)
+            counts[wl.N_PAIRS] = p + 1
 
     # -- around each jitted call -------------------------------------------------------------
 
@@ -174,6 +235,8 @@ class Watcher:
         step = sim.steps_done
         gone = np.zeros(len(sim.m), dtype=bool)
         into = np.arange(len(sim.m))
+        handoff = getattr(sim.module, "handoff", None)
+        self._handoff = handoff(sim.work) if handoff is not None else None  # the step's, for _check_step
         for row in rows:
             keep, lose = int(row[H_KEEP]), int(row[H_LOSE])
             gone[lose], into[lose] = True, keep
@@ -194,7 +257,12 @@ class Watcher:
         from orbitsim.events.kernels import after_step
 
         self.watch[9][wl.STOP] = wl.STOP_NONE
-        after_step(self.watch, sim.pos, sim.vel, sim.m, sim.steps_done, sim.t0, sim.dt)
+        handoff, self._handoff = self._handoff, None
+        if handoff is not None:  # what the step handed to its own sub-steps, for the bodies left
+            keep = self._kept
+            pairs, bodies, flags = handoff
+            handoff = (np.ascontiguousarray(pairs[np.ix_(keep, keep)]), bodies[keep].copy(), flags)
+        after_step(self.watch, sim.pos, sim.vel, sim.m, sim.steps_done, sim.t0, sim.dt, handoff)
         stop = int(self.watch[9][wl.STOP])
         self.watch[9][wl.STOP] = wl.STOP_NONE
         return stop
@@ -205,6 +273,7 @@ class Watcher:
         integrator made and accounted for), the energy their removal changes goes to the offset."""
         before = 0.0 if husks else sim.total_energy()
         keep = np.flatnonzero(~gone)
+        self._kept = keep
         for k in np.flatnonzero(gone):
             orig = int(self.alive[k])
             self.removed_step[orig], self.removed_time[orig] = step, time
@@ -231,7 +300,7 @@ class Watcher:
         fates = {"radii": self.initial_radii.copy(), "final_radii": self.final_radii.copy(),
                  "final_masses": self.final_masses.copy(), "removed_step": self.removed_step.copy(),
                  "removed_time": self.removed_time.copy(), "merged_into": self.merged_into.copy()}
-        return RunEvents(tuple(events), fates)
+        return RunEvents(tuple(events), fates, self.scheme, self.settings)
 
     # -- checkpoints -------------------------------------------------------------------------
 

@@ -21,7 +21,9 @@ What is checked (each only when the scenario asks for it), in one pass over the 
   tau^2 = 2 |a|^2 / (|a'|^2 + |a| |a''|) (Pham, Rein & Spiegel 2024, eq. 16, as REBOUND TRACE
   evaluates it about the star), flagged when dt > eta tau. When the pair passed its closest point
   inside the step, tau is also taken at the pericentre of the osculating orbit, so a step that
-  jumps over a pericentre is caught too. Logged once per episode, naming the lighter body.
+  jumps over a pericentre is caught too. Logged once per episode, naming the lighter body. A
+  hybrid scheme (TRACE) passes what it integrated with adaptive sub-steps this step, which is not
+  judged: only what it stepped with the fixed dt can be unresolved.
 * **escapes**: farther than R from the centre of mass, with positive two-body energy relative to
   the rest of the system (specific energy, so a massless body counts); a body bound to another is
   judged with it, as a pair. Once per escape: escaped until bound again.
@@ -83,7 +85,7 @@ def watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, 
             remember_start(watch, pos, vel)
             step(pos, vel, acc, m, force, dt, work)
             n_done += 1
-            if after_step(watch, pos, vel, m, n_done, t0, dt):
+            if after_step(watch, pos, vel, m, n_done, t0, dt, None):
                 return written, n_done, True, True
         if record[k]:
             if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
@@ -93,8 +95,12 @@ def watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, 
 
 
 @jit_inline
-def after_step(watch, pos, vel, m, n_done, t0, dt):
-    """Check the step that just ended (``n_done``); True when Python must act before the next."""
+def after_step(watch, pos, vel, m, n_done, t0, dt, handoff):
+    """Check the step that just ended (``n_done``); True when Python must act before the next.
+
+    ``handoff``: None, or what a hybrid scheme integrated with its own adaptive sub-steps this
+    step (:func:`orbitsim.events.bodies.handed_over`), which the unresolved-step check leaves out.
+    """
     iconf, counts = watch[0], watch[9]
     stop = STOP_NONE
     if iconf[C_DETECT] != DETECT_NONE or iconf[C_ENC] != ENC_NONE or iconf[C_UNRES] != 0:
@@ -102,7 +108,7 @@ def after_step(watch, pos, vel, m, n_done, t0, dt):
     if iconf[C_ENC] != ENC_NONE or iconf[C_DETECT] != DETECT_NONE:
         close_episodes(watch, n_done)
     if iconf[C_UNRES] != 0:
-        check_unresolved(watch, pos, vel, m, n_done, t0, dt)
+        check_unresolved(watch, pos, vel, m, n_done, t0, dt, handoff)
     if iconf[C_ESCAPE] != ESC_NONE:
         stop = max(stop, check_escapes(watch, pos, vel, m, n_done, t0, dt))
     if counts[N_EVENTS] * 4 >= watch[7].shape[0] * 3 or counts[N_LOST] > 0:

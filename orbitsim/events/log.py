@@ -9,13 +9,14 @@ trace's ``events`` table is the same columns plus a human-readable ``details`` t
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 __all__ = ["EVENT_KINDS", "OUTCOMES", "Event", "RunEvents", "describe", "log_arrays", "log_from_arrays",
-           "summary_line"]
+           "summary_line", "unresolved_fix"]
 
 #: Event kinds; the index + 1 is the code the jitted watch logs (orbitsim.events.layout.EV_*).
 EVENT_KINDS = ("encounter", "collision", "escape", "unresolved", "lost")
@@ -54,8 +55,36 @@ class Event:
     into: int = -1
 
 
-def describe(event: Event, names: Sequence[str]) -> str:
-    """One line about ``event`` for the trace's ``details`` column and ``orbitsim info``."""
+def unresolved_fix(event: Event, scheme: str = "", settings: Mapping[str, Any] | None = None) -> str:
+    """What to change for an ``unresolved`` event, in the terms of the scheme that took the step.
+
+    A fixed-dt scheme: ``use dt <= eta tau``. ``trace`` judges only what it stepped with its fixed
+    dt (:func:`orbitsim.events.bodies.handed_over`), so the pair or the pericentre passage was one
+    its switch left to the Wisdom-Holman map: its own knobs hand it to Bulirsch-Stoer
+    (``r_crit_hill`` for two bodies, neither of them the star, body 0; ``peri_crit_eta`` for an
+    orbit about the star), or a shorter dt. An adaptive ``ias15`` chooses its own steps: its
+    ``epsilon`` does, not dt.
+    """
+    config = dict(settings or {})
+    dt_fix = f"dt <= {event.extra:.3g}"
+    if scheme == "trace":
+        if event.i == 0 or event.j == 0:
+            eta = config.get("peri_crit_eta", 1.0)
+            return (f"trace stepped this pericentre passage with the fixed dt (its switch, peri_crit_eta = {eta:g}, "
+                    f"did not hand it to Bulirsch-Stoer): lower peri_crit_eta, or use {dt_fix}")
+        hill = config.get("r_crit_hill", 3.0)
+        return (f"trace stepped this pair with the fixed dt (it stayed outside r_crit_hill = {hill:g} Hill radii, so "
+                f"was not handed to Bulirsch-Stoer): raise r_crit_hill, or use {dt_fix}")
+    if scheme == "ias15" and config.get("adaptive", True):
+        return (f"ias15 chose a step longer than {event.extra:.3g} here: lower its epsilon (now "
+                f"{config.get('epsilon', 1e-9):g})")
+    return f"use {dt_fix}"
+
+
+def describe(event: Event, names: Sequence[str], scheme: str = "", settings: Mapping[str, Any] | None = None) -> str:
+    """One line about ``event`` for the trace's ``details`` column and ``orbitsim info``;
+    ``scheme`` and its ``settings`` (the run's) word the fix for an unresolved step
+    (:func:`unresolved_fix`)."""
     a = names[event.i] if 0 <= event.i < len(names) else f"body {event.i}"
     b = names[event.j] if 0 <= event.j < len(names) else ""
     if event.kind == "encounter":
@@ -69,7 +98,7 @@ def describe(event: Event, names: Sequence[str]) -> str:
                 f"relative to the rest")
     elif event.kind == "unresolved":
         text = (f"{a}: the step is longer than its orbit about {b} can take here (separation "
-                f"{event.distance:.6g}); use dt <= {event.extra:.3g}")
+                f"{event.distance:.6g}); {unresolved_fix(event, scheme, settings)}")
     else:
         text = f"{event.extra:.0f} events could not be logged (the event buffer was full); it has been enlarged"
     if event.outcome == "merged":
@@ -91,6 +120,8 @@ class RunEvents:
 
     events: tuple[Event, ...]
     fates: dict[str, np.ndarray]
+    scheme: str = ""  # the run's integrator and its settings, which word an unresolved step's fix
+    settings: Mapping[str, Any] = field(default_factory=dict)
 
     def summary(self, names: Sequence[str]) -> str:
         """:func:`summary_line` of the events."""
@@ -103,7 +134,7 @@ class RunEvents:
         table = {name: arr for name, arr in log_arrays(ev).items() if name not in ("code", "outcome_code")}
         table["kind"] = np.array([e.kind for e in ev], dtype=object)
         table["outcome"] = np.array([e.outcome for e in ev], dtype=object)
-        table["details"] = np.array([describe(e, names) for e in ev], dtype=object)
+        table["details"] = np.array([describe(e, names, self.scheme, self.settings) for e in ev], dtype=object)
         return table
 
 

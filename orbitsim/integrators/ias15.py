@@ -210,7 +210,7 @@ def _watched_step(pos, vel, acc, m, force, work, watch):
     clock, counts = work[W_CLOCK], work[W_COUNTS]
     dt_done = clock[CLOCK_DT_LAST_DONE]
     n = counts[COUNT_ACCEPTED]
-    if after_step(watch, pos, vel, m, n, clock[CLOCK_T] - n * dt_done, dt_done):
+    if after_step(watch, pos, vel, m, n, clock[CLOCK_T] - n * dt_done, dt_done, None):
         return ACT
     return REACHED
 

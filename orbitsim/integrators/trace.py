@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
+from orbitsim.events.bodies import HAND_MASSLESS_KEPLER, HAND_WHOLE_STEP
 from orbitsim.events.kernels import after_step, remember_start
 from orbitsim.integrators import trace_core
 from orbitsim.integrators.base import IntegratorSpec, record_sample
@@ -43,13 +44,15 @@ from orbitsim.integrators.trace_layout import (
     STATUS_OK,
     W_BOOK,
     W_COLLIDE,
+    W_ENC,
     W_HITS,
+    W_INTERACTS,
     W_RADII,
 )
-from orbitsim.integrators.trace_switch import ST_STATUS
+from orbitsim.integrators.trace_switch import PARTIAL_BS, ST_CURRENT_C, ST_STATUS
 
-__all__ = ["SETTINGS", "SPEC", "carry_over", "check_bodies", "counters", "failure_message", "make_work", "run",
-           "run_watched", "step", "take_merges", "validate_settings"]
+__all__ = ["SETTINGS", "SPEC", "carry_over", "check_bodies", "counters", "failure_message", "handoff", "make_work",
+           "run", "run_watched", "step", "take_merges", "validate_settings"]
 
 SPEC = IntegratorSpec(
     name="trace",
@@ -214,6 +217,32 @@ def run(state, force, dt, work, t0, n_done, targets, record, out):
     return written, n_done, True
 
 
+@jit_inline
+def _handoff(work):
+    """What the last step integrated with Bulirsch-Stoer (or IAS15) rather than the fixed-dt map,
+    for the events' unresolved-step check (:func:`orbitsim.events.bodies.handed_over`): the pairs
+    flagged as encounters (``interacts``), the encounter set, whose orbits about the star BS
+    integrated (every body in a partial_bs pericentre step), and the whole step in a full_bs or
+    full_ias15 pericentre step. A massless body's orbit about the star is the Kepler drift, exact
+    at any dt; TRACE never hands it over (its pericentre criterion skips test particles) and
+    nothing else in the step depends on its own motion, so it is not judged either."""
+    flags = HAND_MASSLESS_KEPLER
+    if work[W_BOOK][ST_CURRENT_C] != 0 and work[W_INT][0] != PARTIAL_BS:
+        flags |= HAND_WHOLE_STEP
+    return work[W_INTERACTS], work[W_ENC][0], flags
+
+
+def handoff(work: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_handoff` of the last step, as copies (for the checks Python runs after a merge)."""
+    pairs, bodies, flags = _handoff_now(work)
+    return pairs.copy(), bodies.copy(), int(flags)
+
+
+@jit
+def _handoff_now(work):
+    return _handoff(work)
+
+
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`).
@@ -236,7 +265,7 @@ def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch)
                 return written, n_done, False, False
             if post_contacts(watch, work[W_HITS], work[W_COLLIDE], n_done):
                 return written, n_done, True, True
-            if after_step(watch, pos, vel, m, n_done, t0, dt):
+            if after_step(watch, pos, vel, m, n_done, t0, dt, _handoff(work)):
                 return written, n_done, True, True
         if record[k]:
             if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
