@@ -2,7 +2,7 @@
 finished trace is bit-identical, dataset for dataset, to an uninterrupted run's.
 
 Real processes (``python -m orbitsim``), so nothing in the test process can help the run along.
-The kill moments are random (fixed seed): ten steps drawn uniformly over 5-85 % of the run,
+The kill moments are random (fixed seed): ten steps drawn uniformly over 5-50 % of the run,
 sorted; each process is killed once it has published a checkpoint of its own at or past its
 step, plus a random delay of up to 50 ms, so kills land while it integrates, appends samples,
 publishes a checkpoint or rebuilds nothing yet, never while it loads Numba's cache. Drawing the
@@ -43,8 +43,11 @@ generator: {kind: plummer, n: 64, seed: 5}
 KILLS = 10
 #: Seconds to wait for a process to publish its first checkpoint (cold imports on a busy machine).
 START_TIMEOUT = 120
-#: Kill moments: steps drawn over this fraction of the run, then up to JITTER seconds later.
-SPAN = (0.05, 0.85)
+#: Kill moments: steps drawn over this fraction of the run, then up to JITTER seconds later. The last
+#: kill leaves half the run (1-2 s of integration, more under load, which slows the run as much as it
+#: slows this watcher) between it and the end: with 15 % left (0.27 s for ias15) a loaded machine let
+#: the run finish and rename its trace before the kill landed (issue 28).
+SPAN = (0.05, 0.5)
 JITTER = 0.05
 
 
@@ -61,11 +64,11 @@ def wisdom_holman_yaml() -> str:
 
 
 def ias15_yaml() -> str:
-    """The bundled giants under IAS15 (~20 us a step, 5 steps per interval of 100): 4e5 time units
-    take about 4 s; its polynomial, compensation terms and clock all live in the checkpoint."""
+    """The bundled giants under IAS15 (8000 output intervals of 100 take about 3.6 s); its polynomial,
+    compensation terms and clock all live in the checkpoint."""
     text = (Path(__file__).parents[1] / "configs" / "giants.yaml").read_text(encoding="utf-8")
-    text = text.replace("name: giants", "name: kill_ias15").replace("t_end: 1000", "t_end: 400000")
-    return text.replace("  interval: 10\n", "  interval: 100\n  checkpoint: {every: 40}\n")
+    text = text.replace("name: giants", "name: kill_ias15").replace("t_end: 1000", "t_end: 800000")
+    return text.replace("  interval: 10\n", "  interval: 100\n  checkpoint: {every: 80}\n")
 
 
 def trace_yaml() -> str:
@@ -178,7 +181,9 @@ def test_ten_sigkills_then_resume_is_bit_identical(references: dict[str, tuple[P
     for moment in moments:
         code = run_and_kill(command, checkpoint, int(moment), float(rng.uniform(0.0, JITTER)))
         assert code is None, "the run finished before it could be killed ten times: make it longer"
-        assert not out.exists()  # a killed run never leaves a trace at the output path
+        # A killed run never leaves a trace at the output path; a complete one there means the run
+        # finished before the kill landed (the same cause as above, seen after the rename).
+        assert not out.exists(), "the run finished before its kill landed: make it longer or SPAN shorter"
         done = subprocess.run(orbitsim("info", str(out)), capture_output=True, text=True, timeout=120)
         assert done.returncode == 0 and "resumable            yes" in done.stdout, done.stdout + done.stderr
         steps_at_kill.append(int(done.stdout.split("steps_done")[1].split()[0]))
