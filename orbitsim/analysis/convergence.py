@@ -43,7 +43,7 @@ from orbitsim.reference.bridge import ReboundScheme
 
 __all__ = ["CEILING", "DEFAULT_FACTORS", "FIT_POINTS", "FLOOR_MARGIN", "MAX_EXTENSIONS", "MAX_EXTENSION_STEPS",
            "MIN_FIT_POINTS", "STAGNATION_SLOPE", "ConvergenceResult", "ConvergenceSeries", "LadderPoint",
-           "extend_series", "fit_order", "ladder", "run_convergence"]
+           "WholePeriods", "extend_series", "fit_order", "ladder", "run_convergence", "whole_periods"]
 
 #: Default ladder: the scenario's dt times these factors (two coarser, three finer).
 DEFAULT_FACTORS = (4.0, 2.0, 1.0, 0.5, 0.25, 0.125)
@@ -55,6 +55,13 @@ MAX_EXTENSIONS = 6
 MAX_EXTENSION_STEPS = 2**22
 #: A coarser rung must still take at least this many steps.
 MIN_EXTENSION_STEPS = 8
+#: T within this fraction of a period of a whole number of a body's periods is "whole periods": at
+#: 0.01 P from the pericentre the error of a first-order scheme no longer cancels (it grows ~1/P
+#: away from it), so the trap is real only closer than this.
+WHOLE_PERIOD_TOLERANCE = 0.01
+#: A fitted order this far above the declared one is explained by the whole-period trap, if T is one.
+ABOVE_DECLARED = 0.5
+
 #: Runs shorter than this are repeated (best of up to :data:`MAX_REPEATS`) for the work-precision
 #: chart: a single run of a few milliseconds is mostly timer and cache noise.
 MIN_TIMED_SECONDS = 0.05
@@ -129,8 +136,55 @@ class ConvergenceSeries:
         if not math.isfinite(self.fitted_order):
             return f"{self.display}: no fitted order, declared {self.declared_order} ({self.note})"
         if abs(self.fitted_order - self.declared_order) > tolerance:
-            return f"{self.display}: fitted {self.fitted_order:.2f}, declared {self.declared_order}"
+            why = f" ({self.note})" if self.note else ""
+            return f"{self.display}: fitted {self.fitted_order:.2f}, declared {self.declared_order}{why}"
         return ""
+
+
+@dataclass(frozen=True)
+class WholePeriods:
+    """T is (nearly) a whole number of one body's periods about the heaviest body: over whole orbits
+    of a Kepler problem the leading error of some schemes cancels (semi-implicit Euler's first-order
+    term does, started at pericentre), so the fitted order comes out above the declared one."""
+
+    body: str
+    centre: str
+    period: float
+    periods: float  # T / P
+    better_t_end: float  # 0.7 P after t_start, on the scenario's clock
+
+    def words(self) -> str:
+        return (f"T is {self.periods:.3f} periods of {self.body} about {self.centre} (P = {self.period:.6g}): over "
+                "whole orbits a scheme's leading error can cancel (semi-implicit Euler's, started at an apsis), "
+                f"and the order measured is the next one; measure within the first orbit: --t-end "
+                f"{self.better_t_end:.6g} (0.7 P)")
+
+
+def whole_periods(scenario: Any, end_time: float) -> WholePeriods | None:
+    """The first body whose osculating period about the heaviest body divides T a whole number of
+    times (within :data:`WHOLE_PERIOD_TOLERANCE` of a period), or None. The end time it suggests,
+    0.7 P after t_start, takes in one pericentre passage, where a scheme's error is made, and is
+    measured before the bounded first-order terms hide under the errors that grow secularly.
+    (0.3 P from apocentre, on the bundled two_body_eccentric, never reaches the pericentre: leapfrog8
+    is at round-off there at every dt.)"""
+    m = np.asarray(scenario.masses, dtype=float)
+    x, v = np.asarray(scenario.positions, dtype=float), np.asarray(scenario.velocities, dtype=float)
+    c = int(np.argmax(m))
+    for i in range(len(m)):
+        gm = scenario.G * (m[c] + m[i])
+        if i == c or not gm > 0.0:
+            continue
+        r, w = x[i] - x[c], v[i] - v[c]
+        energy = 0.5 * float(w @ w) - gm / math.sqrt(float(r @ r))
+        if not energy < 0.0:
+            continue
+        a = -gm / (2.0 * energy)
+        period = 2.0 * math.pi * math.sqrt(a**3 / gm)
+        k = end_time / period
+        if k >= 1.0 - WHOLE_PERIOD_TOLERANCE and abs(k - round(k)) < WHOLE_PERIOD_TOLERANCE:
+            names = scenario.names
+            return WholePeriods(names[i], names[c], period, k, scenario.t_start + 0.7 * period)
+    return None
 
 
 def ladder(base_dt: float, dts: Sequence[float] | None) -> list[float]:
@@ -303,5 +357,10 @@ def run_convergence(scenario: Any, *, integrators: Sequence[str], rebound: Seque
         if extend:
             extend_series(s, rungs, say)
         s.fit(rungs.end_time)
+    trap = whole_periods(scenario, end_time)
+    notes = [trap.words()] if trap is not None else []
+    for s in series:
+        if trap is not None and s.judged and s.fitted_order - s.declared_order > ABOVE_DECLARED:
+            s.note = "; ".join(filter(None, [s.note, f"above the declared order: {trap.words()}"]))
     union = sorted({p.dt for s in series for p in s.points}, reverse=True)
-    return ConvergenceResult(scenario, float(end_time), union, series)
+    return ConvergenceResult(scenario, float(end_time), union, series, notes)

@@ -139,7 +139,9 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
         say(f"  note: {name} left out: {why}")
     result = run_convergence(sc, integrators=names, rebound=schemes, dts=rungs, end_time=end_time, progress=say,
                              extend=not dts)
-    result.notes = [f"{name} left out: {why}" for name, why in left_out]
+    for note in result.notes:  # what the run found about T itself (whole_periods)
+        say(f"  note: {note}")
+    result.notes = [f"{name} left out: {why}" for name, why in left_out] + result.notes
     paths = write_convergence_outputs(result, outdir, command_line(ctx), order_tolerance)
     for s in result.series:
         fitted = f"{s.fitted_order:5.2f}" if s.fitted_order == s.fitted_order else "  n/a"
