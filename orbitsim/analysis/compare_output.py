@@ -196,7 +196,7 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
 
 def forces_table(result: CompareResult) -> Table:
     """How each run applies each of the scenario's forces: orbitsim's runs and REBOUND's side by side."""
-    from orbitsim.forces.schema import describe_forces
+    from orbitsim.scenario.forces import describe_forces
 
     records = [*result.runs, *result.references.values()] or [*result.runs, result.reference]
     table = Table(["run", "forces and how they are applied"],

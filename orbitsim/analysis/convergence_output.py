@@ -147,7 +147,7 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
     steps = round(result.end_time / abs(sc.dt)) if sc.dt else 0
     sections = [Section("Fitted orders", [orders]), Section("Errors", [errors, walls])]
     if getattr(sc, "forces", ()):
-        from orbitsim.forces.schema import describe_forces
+        from orbitsim.scenario.forces import describe_forces
 
         forces = Table(["integrator", "forces and how they are applied"],
                        [[s.display, "; ".join(s.forces) or "none"] for s in result.series])
