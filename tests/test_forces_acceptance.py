@@ -29,9 +29,9 @@ from forces_helpers import (
     rebx_mercury_rate,
 )
 
-from orbitsim.analysis.resonance_figure import libration_amplitude, resonant_angles
 from orbitsim.forces.table import GR, GR_POTENTIAL, HARMONICS, P_C, P_J2, P_J4, P_R_EQ, P_SPIN, ForceSet
 from orbitsim.physics.orbital_elements import osculating_elements
+from orbitsim.plots.resonance import libration_amplitude, resonant_angles
 from orbitsim.reference.bridge import rebound_simulation
 from orbitsim.reference.rebx import attach_forces, rebx_energy
 from orbitsim.sampling import EveryPlan
