@@ -9,18 +9,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from orbitsim.integrators.base import SCALAR_COLUMNS
+from orbitsim.integrators.base import SCALAR_COLUMNS, IntegratorSpec
 from orbitsim.io.schema import NEAR_ZERO_ENERGY, energy_scale
 
-if TYPE_CHECKING:
-    from orbitsim.simulation import Simulation
-
-__all__ = ["NEAR_ZERO_ENERGY", "SampleBuffers", "SampleChunk", "SimulationResult", "collect_result", "energy_scale",
-           "relative_energy_error"]
+__all__ = ["NEAR_ZERO_ENERGY", "FinishedRun", "SampleBuffers", "SampleChunk", "SimulationResult", "collect_result",
+           "energy_scale", "relative_energy_error"]
 
 @dataclass
 class SampleChunk:
@@ -148,7 +145,38 @@ class SampleBuffers:
         )
 
 
-def collect_result(sim: Simulation, parts: list[SampleChunk], record_positions: bool,
+class FinishedRun(Protocol):
+    """What :func:`collect_result` reads of the run that made the chunks.
+
+    :class:`orbitsim.simulation.Simulation` is one. It is declared here, by what is read, so that the
+    result types do not import the engine that produces them (which imports them).
+    """
+
+    spec: IntegratorSpec
+    dt: float
+    G: float
+    softening: float
+    t0: float
+    n: int
+    steps_done: int
+    diverged: bool
+    watcher: Any  # the run's events (orbitsim.events.driver.Watcher), or None without events
+
+    @property
+    def halted(self) -> Any:
+        """The event the run halted at, or None."""
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Current positions and velocities as (N, 3) copies."""
+
+    def failure_detail(self) -> str | None:
+        """The scheme's own account of a divergence, if it has one."""
+
+    def non_finite_bodies(self) -> list[int]:
+        """Indices of the bodies whose state is not finite."""
+
+
+def collect_result(sim: FinishedRun, parts: list[SampleChunk], record_positions: bool,
                    wall: float) -> SimulationResult:
     """Join the chunks of a run of ``sim`` into one :class:`SimulationResult`."""
 
@@ -194,7 +222,7 @@ def collect_result(sim: Simulation, parts: list[SampleChunk], record_positions: 
     )
 
 
-def _divergence_message(sim: Simulation, parts: list[SampleChunk]) -> str:
+def _divergence_message(sim: FinishedRun, parts: list[SampleChunk]) -> str:
     bodies = sim.non_finite_bodies()
     t_last = float(parts[-1].time[-1]) if parts else sim.t0
     message = (

@@ -6,27 +6,34 @@ sample (:mod:`orbitsim.scenario.integrator_state`) and an animation of the scena
 bits. A new run from the scenario's own bodies also takes the scheme's own coordinates when the
 scenario carries them (``integrator_state``), and resolves bodies that overlap at its start as
 ``events.collisions`` says; a continuation passes the state it goes on from.
+
+Those coordinates (:mod:`orbitsim.scenario.integrator_state`) meet the engine here: :func:`install`
+puts them into a new run's work, and :func:`state_from_checkpoint` and :func:`state_by_replay`
+recover them at a sample of a trace, for ``orbitsim export --format scenario``.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:
-    import numpy as np
+import numpy as np
 
+from orbitsim.scenario.integrator_state import PHASES, STATEFUL, applies
+
+if TYPE_CHECKING:
+    from orbitsim.io.checkpoint import Checkpoint
     from orbitsim.scenario import Scenario
     from orbitsim.simulation import Simulation
 
-__all__ = ["scenario_forces", "scenario_simulation"]
+__all__ = ["install", "scenario_forces", "scenario_simulation", "state_by_replay", "state_from_checkpoint"]
 
 
 def scenario_forces(scenario: Any) -> Any:
-    """A scenario's ForceSet (:func:`orbitsim.forces.schema.force_set`), or None without forces;
+    """A scenario's ForceSet (:func:`orbitsim.scenario.forces.force_set`), or None without forces;
     the forces package is imported only when there are some."""
     if not getattr(scenario, "forces", ()):
         return None
-    from orbitsim.forces.schema import force_set
+    from orbitsim.scenario.forces import force_set
 
     return force_set(scenario)
 
@@ -43,9 +50,63 @@ def scenario_simulation(scenario: Scenario, threads: int | None = None, *, eleme
     sim = Simulation(masses, positions, velocities, sc.integrator, sc.grid_dt, sc.G, sc.softening, t0, threads,
                      sc.run_settings, events=sc.events, radii=radii, elements=elements, forces=scenario_forces(sc))
     if start is None and sc.integrator_state is not None:
-        from orbitsim.scenario.integrator_state import install
-
         install(sim, sc)
     if start is None and sim.watcher is not None:
         sim.watcher.contacts_at_start(sim)  # bodies that overlap at t_start: a collision at step 0
     return sim
+
+
+def install(sim: Simulation, s: Scenario) -> None:
+    """Put ``s``'s integrator state into ``sim``'s work (a new run), when it applies."""
+    if not applies(s):
+        return
+    from orbitsim.integrators.wisdom_holman import restore_internal_state
+
+    state = s.integrator_state
+    restore_internal_state(sim.work, {
+        "mapping_positions": state["mapping_positions"].T, "mapping_velocities": state["mapping_velocities"].T,
+        "synced_positions": sim.pos, "synced_velocities": sim.vel, "phase": np.array([state["phase"]])})
+
+
+def state_from_checkpoint(s: Scenario, checkpoint: Checkpoint, step: int, positions: np.ndarray,
+                          velocities: np.ndarray) -> dict[str, Any] | None:
+    """The integrator state at sample ``step`` with state ``positions``, ``velocities`` (N, 3), from
+    the checkpoint of the run ``s`` describes; None when the checkpoint holds another step's state."""
+    if s.integrator not in STATEFUL or checkpoint.state.steps_done != step:
+        return None
+    from orbitsim.checkpoint.state import restore_work
+    from orbitsim.integrators.wisdom_holman import make_work
+
+    work = make_work(s.masses, s.G, s.integrator_settings)
+    if not restore_work(work, checkpoint.state):
+        return None
+    return _state_at(work, positions, velocities)
+
+
+def state_by_replay(s: Scenario, step: int, positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any] | None:
+    """The integrator state at sample ``step`` of the run ``s`` describes, by running ``s`` again from
+    its start to that step: same input, same bits, and where outputs fall does not change the map's
+    state (:mod:`orbitsim.integrators.wisdom_holman`). None unless the replay lands on the sample's
+    exact bits (a trace that was not one run of ``s``)."""
+    if s.integrator not in STATEFUL or not 0 <= step <= s.steps:
+        return None
+    sim = scenario_simulation(s)  # the run that wrote the trace, from s's own integrator state if it has one
+    for _ in sim.chunks(np.array([step], dtype=np.int64), record_positions=False):
+        pass
+    if sim.steps_done != step or sim.n != positions.shape[0]:
+        return None
+    return _state_at(sim.work, positions, velocities)
+
+
+def _state_at(work: tuple[Any, ...], positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any] | None:
+    """The map's state in ``work`` if it was synchronised to exactly ``positions``, ``velocities``."""
+    from orbitsim.integrators.wisdom_holman import internal_state
+
+    arrays = internal_state(work)
+    phase = int(arrays["phase"][0])
+    synced = (np.array_equal(arrays["synced_positions"], positions.T)
+              and np.array_equal(arrays["synced_velocities"], velocities.T))
+    if phase not in PHASES or not synced:
+        return None
+    return {"phase": phase, "mapping_positions": arrays["mapping_positions"].T.copy(),
+            "mapping_velocities": arrays["mapping_velocities"].T.copy()}

@@ -75,7 +75,7 @@ def test_reports_name_every_run_versions_and_machine(circular: tuple[Path, int, 
 
 
 def test_compare_h5_groups_are_traces(circular: tuple[Path, int, str]) -> None:
-    from orbitsim.analysis.tracegroup import COMPARE_FORMAT, list_trace_groups, read_trace_group
+    from orbitsim.compare.tracegroup import COMPARE_FORMAT, list_trace_groups, read_trace_group
 
     with h5py.File(circular[0] / "compare.h5", "r") as f:
         assert f.attrs["format"] == COMPARE_FORMAT and "scenario" in f.attrs

@@ -141,7 +141,7 @@ def test_a_star_is_not_described_as_bound_to_its_planet() -> None:
     innermost planet (issue 27, item 8). The lighter body of a bound pair is bound to the heavier."""
     from types import SimpleNamespace
 
-    from orbitsim.analysis.compare_ias15 import escape_summary
+    from orbitsim.compare.ias15 import escape_summary
 
     m = np.array([1.0, 1e-3, 1e-3, 1e-3, 1e-3, 1e-6])
     a = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 50.0])

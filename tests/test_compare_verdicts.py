@@ -145,8 +145,8 @@ def test_mismatch_still_exits_1_even_when_the_reference_is_unreliable(tmp_path: 
 def test_verdict_kinds_without_the_cli() -> None:
     """The classification itself: a twin that stops where REBOUND goes on is unbounded
     amplification (chaotic), and a reference that did not complete is unreliable."""
-    from orbitsim.analysis.metrics import CHAOTIC, REFERENCE_ENERGY_LIMIT, pair_verdict, reference_problem
-    from orbitsim.analysis.record import RunRecord
+    from orbitsim.compare.metrics import CHAOTIC, REFERENCE_ENERGY_LIMIT, pair_verdict, reference_problem
+    from orbitsim.record import RunRecord
     from orbitsim.reference.pairs import parse_pair
 
     def record(n: int, status: str = "complete", energy_jump: float = 0.0) -> RunRecord:

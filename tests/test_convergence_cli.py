@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from orbitsim.analysis.convergence import fit_order, ladder
 from orbitsim.cli.main import cli
+from orbitsim.convergence.run import fit_order, ladder
 
 pytest.importorskip("rebound")
 

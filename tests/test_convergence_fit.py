@@ -1,7 +1,7 @@
-"""The order fit of ``orbitsim convergence`` (orbitsim.analysis.convergence_fit): it uses the
+"""The order fit of ``orbitsim convergence`` (orbitsim.convergence.fit): it uses the
 asymptotic part of a ladder, blames round-off only for a floor the ladder reached, and gives the
 true reason and a ladder to try when there is no order; the default ladder reaches each scheme's
-asymptotic range (orbitsim.analysis.convergence.extend_series).
+asymptotic range (orbitsim.convergence.run.extend_series).
 
 The Kepler problem of the CLI tests is the bundled e = 0.9 orbit (two_body_eccentric) up to
 T = 4.4, 0.7 of a period through pericentre (not a whole number of periods, see test_convergence).
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from orbitsim.analysis.convergence_fit import FITTED, FLOOR, ROUND_OFF, TOO_COARSE, fit_order
 from orbitsim.cli.main import cli
+from orbitsim.convergence.fit import FITTED, FLOOR, ROUND_OFF, TOO_COARSE, fit_order
 
 pytest.importorskip("rebound")
 

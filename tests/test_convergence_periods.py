@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from orbitsim.analysis.convergence import WHOLE_PERIOD_TOLERANCE, whole_periods
 from orbitsim.cli.main import cli
+from orbitsim.convergence.run import WHOLE_PERIOD_TOLERANCE, whole_periods
 from orbitsim.scenario import load_scenario
 
 

@@ -29,14 +29,14 @@ from forces_helpers import (
     rebx_mercury_rate,
 )
 
-from orbitsim.analysis.resonance_figure import libration_amplitude, resonant_angles
-from orbitsim.forces.schema import force_set
 from orbitsim.forces.table import GR, GR_POTENTIAL, HARMONICS, P_C, P_J2, P_J4, P_R_EQ, P_SPIN, ForceSet
 from orbitsim.physics.orbital_elements import osculating_elements
+from orbitsim.plots.resonance import libration_amplitude, resonant_angles
 from orbitsim.reference.bridge import rebound_simulation
 from orbitsim.reference.rebx import attach_forces, rebx_energy
 from orbitsim.sampling import EveryPlan
 from orbitsim.scenario import Scenario, load_scenario
+from orbitsim.scenario.forces import force_set
 from orbitsim.simulation import Simulation
 
 #: Mercury's sample spacing and count: 2000 samples over 100 time units (t = 0.05 ... 100).

@@ -18,10 +18,10 @@ from click.testing import CliRunner
 from orbitsim.batch.sweep import SweepError, load_sweep
 from orbitsim.cli.main import cli
 from orbitsim.forces.compat import FORCE_INTEGRATORS, check_integrator
-from orbitsim.forces.schema import SPEED_OF_LIGHT, default_c, force_set
 from orbitsim.forces.table import GR_POTENTIAL, HARMONICS, MIGRATION, P_C, P_J2, P_J4, P_R_EQ, P_SPIN
 from orbitsim.integrators.registry import MODULE_NAMES
 from orbitsim.scenario import ScenarioError, load_scenario, scenario_from_dict
+from orbitsim.scenario.forces import SPEED_OF_LIGHT, default_c, force_set
 from orbitsim.scenario.yamlio import parse_yaml
 
 # The planet is listed first and the star second, so a default source that took body 0 (REBOUNDx's

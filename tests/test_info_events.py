@@ -278,7 +278,7 @@ def test_info_events_kind_lists_only_that_kind(tmp_path: Path) -> None:
 
 
 def test_info_events_reads_the_table_block_by_block(tmp_path: Path) -> None:
-    from orbitsim.analysis.trace_events import iter_events
+    from orbitsim.io.trace_events import iter_events
 
     trace = run(tmp_path, PERICENTRES, "pericentres")
     with h5py.File(trace, "r") as f:

@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from orbitsim.analysis.element_figure import ELEMENTS_GROUP, _gapped, draw_elements, read_elements
 from orbitsim.cli.main import cli
 from orbitsim.initial_conditions.elements import elements_to_cartesian
 from orbitsim.io.trace import open_trace_summary
 from orbitsim.io.trace_writer import TraceWriter
 from orbitsim.physics.orbital_elements import ELEMENT_NAMES, osculating_elements
+from orbitsim.plots.elements import ELEMENTS_GROUP, _gapped, draw_elements, read_elements
 
 G = 4.0 * np.pi**2  # au-yr-msun
 PNG = b"\x89PNG\r\n\x1a\n"

@@ -130,7 +130,7 @@ def test_marks_change_no_axis_range() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from orbitsim.analysis.event_marks import mark_events
+    from orbitsim.plots.event_marks import mark_events
 
     fig, ax = plt.subplots()
     ax.semilogy([0.0, 10.0], [1e-12, 1e-9])

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from orbitsim.analysis.metrics import energy_drift_slope, pair_verdict, relative_position_difference
+from orbitsim.compare.metrics import energy_drift_slope, pair_verdict, relative_position_difference
 from orbitsim.integrators.registry import INTEGRATORS, get_spec
 from orbitsim.reference.bridge import (
     ReboundScheme,
@@ -134,7 +134,7 @@ def test_parse_pair() -> None:
 
 
 def test_mismatched_pair_disagrees_and_matched_agrees() -> None:
-    from orbitsim.analysis.compare import run_orbitsim
+    from orbitsim.compare.run import run_orbitsim
 
     class Tiny:
         G, softening, dt, integrator, integrator_settings = 1.0, 0.0, 0.05, "verlet", {}

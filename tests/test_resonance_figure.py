@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from orbitsim.analysis.resonance_figure import libration_amplitude, parse_resonance, pick_pair, resonant_angles
 from orbitsim.cli.main import cli
+from orbitsim.plots.resonance import libration_amplitude, parse_resonance, pick_pair, resonant_angles
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -78,7 +78,7 @@ def failed_result(err: BaseException | str, worker: str = "") -> dict[str, Any]:
 
 def _event_counts(f: Any) -> dict[str, int]:
     """The trace's events by summary column; 0 each for a run without ``events:``."""
-    from orbitsim.analysis.trace_events import event_counts
+    from orbitsim.io.trace_events import event_counts
 
     counts = event_counts(f) or {}
     return {column: int(counts.get(kind, 0)) for column, kind in EVENT_COLUMNS}

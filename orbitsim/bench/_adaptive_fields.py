@@ -11,12 +11,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from orbitsim.bench._fields import GENERATED_SYSTEMS, Reader
-
-if TYPE_CHECKING:
-    from orbitsim.bench.matrix import Group
+from orbitsim.bench._fields import GENERATED_SYSTEMS, Group, Reader
 
 __all__ = ["ADAPTIVE_KEYS", "AdaptiveCase", "distinct_ns", "expand_adaptive", "per_n", "per_n_number", "per_n_system",
            "read_adaptive"]

@@ -1,4 +1,6 @@
-"""Typed, located access to the keys of a matrix document (used by :mod:`orbitsim.bench.matrix`).
+"""Typed, located access to the keys of a matrix document (used by :mod:`orbitsim.bench.matrix`), and
+the validated :class:`Group` every kind's reader and runner takes (here, below the readers of each kind,
+so that they need not import the matrix module that dispatches to them).
 
 Every failure raises :class:`BenchMatrixError`, whose ``str()`` is one line naming the file and
 the key path, e.g. ``configs/bench.yaml: groups[1].n[2]: expected an integer >= 2, got 'many'``.
@@ -8,9 +10,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["GENERATED_SYSTEMS", "BenchMatrixError", "Reader", "join"]
+__all__ = ["GENERATED_SYSTEMS", "BenchMatrixError", "Group", "Reader", "join"]
 
 #: Systems the benchmark builds itself; anything else is passed to ``load_scenario``.
 GENERATED_SYSTEMS = ("plummer", "planets", "planetesimals")
@@ -27,6 +30,17 @@ class BenchMatrixError(ValueError):
 
     def __str__(self) -> str:
         return ": ".join(part for part in (self.file, self.key, self.message) if part)
+
+
+@dataclass(frozen=True)
+class Group:
+    """One validated group: its kind, name, repeat counts and kind-specific ``params``."""
+
+    name: str
+    kind: str
+    repeats: int
+    warmup: int
+    params: dict[str, Any] = field(default_factory=dict)
 
 
 class Reader:

@@ -12,13 +12,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from orbitsim.bench._adaptive_fields import distinct_ns, per_n, per_n_number, per_n_system
-from orbitsim.bench._fields import Reader
-
-if TYPE_CHECKING:
-    from orbitsim.bench.matrix import Group
+from orbitsim.bench._fields import Group, Reader
 
 __all__ = ["TRACE_KEYS", "TraceCase", "expand_trace", "read_trace"]
 

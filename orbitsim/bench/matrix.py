@@ -58,12 +58,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from orbitsim.bench._adaptive_fields import ADAPTIVE_KEYS, AdaptiveCase, expand_adaptive, read_adaptive
-from orbitsim.bench._fields import GENERATED_SYSTEMS, BenchMatrixError, Reader
+from orbitsim.bench._fields import GENERATED_SYSTEMS, BenchMatrixError, Group, Reader
 from orbitsim.bench._trace_fields import TRACE_KEYS, TraceCase, expand_trace, read_trace
 
 __all__ = [
@@ -103,17 +103,6 @@ _GROUP_KEYS: dict[str, tuple[str, ...]] = {
     "trace": TRACE_KEYS,
 }
 _COMMON_GROUP_KEYS = ("name", "kind", "repeats", "warmup", "description")
-
-
-@dataclass(frozen=True)
-class Group:
-    """One validated group: its kind, name, repeat counts and kind-specific ``params``."""
-
-    name: str
-    kind: str
-    repeats: int
-    warmup: int
-    params: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -144,15 +144,15 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
       orbitsim compare figure_eight -o fig8/ --rebound leapfrog:4,leapfrog:6,saba:10_6_4
       orbitsim compare pythagorean -o pyth/ --reference orbitsim
     """
-    from orbitsim.analysis.compare import (
+    from orbitsim.compare.ias15 import fixed_step_plan, output_grid
+    from orbitsim.compare.output import write_compare_outputs
+    from orbitsim.compare.run import (
         default_candidates,
         default_integrators,
         default_rebound,
         defaults_left_out,
         run_compare,
     )
-    from orbitsim.analysis.compare_ias15 import fixed_step_plan, output_grid
-    from orbitsim.analysis.compare_output import write_compare_outputs
     from orbitsim.reference.bridge import parse_rebound_scheme
     from orbitsim.reference.pairs import parse_pair
 

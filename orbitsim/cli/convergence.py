@@ -77,9 +77,9 @@ def command(ctx: click.Context, scenario: str, outdir: Path, integrators: str | 
       orbitsim convergence two_body_eccentric -o conv/ --integrators verlet,rk4,leapfrog4 \\
           --dts 0.002,0.001,0.0005,0.00025 --t-end 4.4 --check
     """
-    from orbitsim.analysis.compare import default_rebound, settings_for
-    from orbitsim.analysis.convergence import ladder, run_convergence
-    from orbitsim.analysis.convergence_output import write_convergence_outputs
+    from orbitsim.compare.run import default_rebound, settings_for
+    from orbitsim.convergence.output import write_convergence_outputs
+    from orbitsim.convergence.run import ladder, run_convergence
     from orbitsim.integrators.registry import INTEGRATORS, canonical_name
     from orbitsim.reference.bridge import parse_rebound_scheme
     from orbitsim.reference.force_pairing import orbitsim_refusal, rebound_refusal

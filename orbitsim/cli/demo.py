@@ -41,8 +41,8 @@ def command(ctx: click.Context, outdir: Path, quiet: bool) -> None:
     Example:
       orbitsim demo -o demo-report
     """
-    from orbitsim.analysis.lesson import run_lesson
-    from orbitsim.analysis.lesson_output import write_lesson_outputs
+    from orbitsim.lesson.output import write_lesson_outputs
+    from orbitsim.lesson.run import run_lesson
 
     say = (lambda _m: None) if quiet else click.echo
     scenario = lesson_scenario()

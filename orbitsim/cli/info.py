@@ -125,7 +125,7 @@ def _event_lines(path: str, n_bodies: int) -> list[str]:
     datasets (docs/trace.md), so a trace without events prints what it always printed."""
     import h5py
 
-    from orbitsim.analysis.trace_events import bodies_left, elements_info, event_counts, first_events, format_time
+    from orbitsim.io.trace_events import bodies_left, elements_info, event_counts, first_events, format_time
 
     with h5py.File(path, "r") as f:
         elements, counts = elements_info(f), event_counts(f)
@@ -155,8 +155,8 @@ def _list_events(path: str, kind: str | None) -> None:
     order they happened; read block by block, so a table of millions of rows prints in flat memory."""
     import h5py
 
-    from orbitsim.analysis.trace_events import event_counts, format_time, iter_events
     from orbitsim.io.trace import open_trace_summary
+    from orbitsim.io.trace_events import event_counts, format_time, iter_events
 
     open_trace_summary(path)  # a missing, foreign or damaged file: the one line every command gives
     with h5py.File(path, "r") as f:

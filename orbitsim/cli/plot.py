@@ -1,7 +1,7 @@
 """``orbitsim plot``: orbits on the x-y plane and |dE/E| against time, in one figure; or, with
 ``--elements``, every body's osculating elements against time
-(:mod:`orbitsim.analysis.element_figure`); or, with ``--resonance P:Q``, a pair's resonant angles
-and period ratio (:mod:`orbitsim.analysis.resonance_figure`)."""
+(:mod:`orbitsim.plots.elements`); or, with ``--resonance P:Q``, a pair's resonant angles
+and period ratio (:mod:`orbitsim.plots.resonance`)."""
 
 from __future__ import annotations
 
@@ -73,12 +73,12 @@ def command(trace: str, output: str | None, elements: bool, resonance: str | Non
     _check_figure_path(output or str(target), stem)  # before the trace is read
     summary = open_trace_summary(trace)  # checks the format before anything is drawn
     if elements or spec:
-        from orbitsim.analysis.element_figure import check_elements
+        from orbitsim.plots.elements import check_elements
 
         check_elements(summary)  # no elements group: one line, before any drawing
     events = None
     if show_events:
-        from orbitsim.analysis.event_marks import read_event_times
+        from orbitsim.plots.event_marks import read_event_times
 
         events = read_event_times(trace)  # no events table: one line, before any drawing
     if target.exists() and not force:
@@ -103,7 +103,7 @@ def _marked(events: dict[str, Any]) -> str:
 
 
 def _plot_elements(trace: str, summary: dict[str, Any], target: Path, events: dict[str, Any] | None = None) -> None:
-    from orbitsim.analysis.element_figure import draw_elements, read_elements
+    from orbitsim.plots.elements import draw_elements, read_elements
 
     data = read_elements(trace, summary, MAX_PLOT_SAMPLES, MAX_TRACKS)
     length, time_unit = _units(summary["attrs"])
@@ -119,7 +119,7 @@ def _check_resonance(resonance: str | None, pair: str | None, elements: bool) ->
         return None
     if elements:
         raise OneLineUsageError("--elements and --resonance draw different figures; give one")
-    from orbitsim.analysis.resonance_figure import parse_resonance
+    from orbitsim.plots.resonance import parse_resonance
 
     try:
         return parse_resonance(resonance)
@@ -129,8 +129,8 @@ def _check_resonance(resonance: str | None, pair: str | None, elements: bool) ->
 
 def _plot_resonance(trace: str, summary: dict[str, Any], target: Path, spec: tuple[int, int],
                     pair: str | None) -> None:
-    from orbitsim.analysis.element_figure import read_elements
-    from orbitsim.analysis.resonance_figure import draw_resonance, pick_pair
+    from orbitsim.plots.elements import read_elements
+    from orbitsim.plots.resonance import draw_resonance, pick_pair
 
     data = read_elements(trace, summary, MAX_PLOT_SAMPLES, MAX_TRACKS)
     try:
@@ -206,7 +206,7 @@ def _draw(data: dict[str, Any], attrs: dict[str, Any], target: Path, view: str =
     _draw_orbits(ax_orbit, data, length, view)
     _draw_energy(ax_energy, data, time_unit)
     if events:
-        from orbitsim.analysis.event_marks import mark_events
+        from orbitsim.plots.event_marks import mark_events
 
         mark_events(ax_energy, events)
     fig.suptitle(_title(attrs, target, time_unit))

@@ -139,7 +139,7 @@ def _rebound_or_yaml(scenario: str, steps: int | None, t_end: float | str | None
     --steps or --t-end with its integrator and dt; anything else is a YAML file or a bundled name."""
     from orbitsim.io.rebound_file import is_rebound_file
     from orbitsim.scenario import load_scenario
-    from orbitsim.scenario.rebound_bodies import rebound_scenario
+    from orbitsim.scenario.loader import rebound_scenario
 
     if is_rebound_file(scenario):
         return rebound_scenario(scenario, steps=steps, t_end=t_end)

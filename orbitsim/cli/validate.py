@@ -82,7 +82,7 @@ def _describe(spec: str, scenario: object, size: int) -> None:
                f"{'' if exact else 'at most '}{samples} samples ({sampling}), positions "
                f"{'on' if s.record_positions else 'off'}, trace about {format_bytes(size)}")
     if s.forces:
-        from orbitsim.forces.schema import describe_forces
+        from orbitsim.scenario.forces import describe_forces
 
         click.echo(f"  forces: {describe_forces(s.forces)}")
     estimate = estimate_time(s)

@@ -27,7 +27,7 @@ scenario's N: a removed body's position and velocity are NaN from its removal on
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -35,18 +35,53 @@ from orbitsim.events import layout as wl
 from orbitsim.events.config import EventsConfig
 from orbitsim.events.log import Event, RunEvents, log_arrays, log_from_arrays
 from orbitsim.events.watch import build_watch, drain, open_encounters, shrink_watch, watch_arrays, watch_from_arrays
+from orbitsim.integrators.base import IntegratorSpec
 from orbitsim.results import SampleChunk
 
-if TYPE_CHECKING:
-    from orbitsim.simulation import Simulation
+__all__ = ["WatchedRun", "Watcher"]
 
-__all__ = ["Watcher"]
+
+class WatchedRun(Protocol):
+    """What a :class:`Watcher` reads and changes of the simulation it watches.
+
+    :class:`orbitsim.simulation.Simulation` is one. It is declared here, by what is used, so that the
+    driver does not import the simulation that creates it: the state (N,) ``m`` and (3, N) ``pos``,
+    ``vel``, ``acc``; the contexts handed to the scheme's ``run_watched``; the step count and clock.
+    """
+
+    n: int
+    m: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    G: float
+    dt: float
+    t0: float
+    steps_done: int
+    spec: IntegratorSpec
+    settings: dict[str, Any]
+    force: Any  # the context the scheme's run_watched takes (orbitsim.physics.gravity.make_force)
+    work: Any  # the scheme's work arrays
+
+    @property
+    def module(self) -> Any:
+        """The integrator's module (``run_watched``, and ``take_merges``/``handoff`` where it has them)."""
+
+    @property
+    def time(self) -> float:
+        """Time of the current state."""
+
+    def total_energy(self) -> float:
+        """Total energy of the current state."""
+
+    def replace_bodies(self, m: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
+        """Go on with these bodies: (N,) masses, (3, N) positions and velocities."""
 
 
 class Watcher:
     """The events of one simulation: the watch, the bodies left, the offset, the log, the fates."""
 
-    def __init__(self, sim: Simulation, config: EventsConfig, radii: Any) -> None:
+    def __init__(self, sim: WatchedRun, config: EventsConfig, radii: Any) -> None:
         n = sim.n
         self.config = config
         self.n0 = n
@@ -72,7 +107,7 @@ class Watcher:
 
     # -- the state a run starts from ---------------------------------------------------------
 
-    def contacts_at_start(self, sim: Simulation) -> None:
+    def contacts_at_start(self, sim: WatchedRun) -> None:
         """Log the pairs that overlap in ``sim``'s state as collisions at its step, and resolve
         them by the scenario's rule: ``merge`` joins them before the first step, ``halt`` ends the
         run there (:meth:`Simulation.chunks` then takes no step), ``log`` records each once and
@@ -123,7 +158,7 @@ class Watcher:
 
     # -- around each jitted call -------------------------------------------------------------
 
-    def call(self, sim: Simulation, targets: np.ndarray, record: np.ndarray, out: tuple[np.ndarray, ...],
+    def call(self, sim: WatchedRun, targets: np.ndarray, record: np.ndarray, out: tuple[np.ndarray, ...],
              ) -> tuple[int, int, bool, bool]:
         """One jitted call of the scheme's ``run_watched``; ``(written, n_done, finite, acted)``."""
         state = (sim.pos, sim.vel, sim.acc, sim.m)
@@ -157,7 +192,7 @@ class Watcher:
         out[self.alive] = rows
         return out
 
-    def after_call(self, sim: Simulation, acted: bool) -> None:
+    def after_call(self, sim: WatchedRun, acted: bool) -> None:
         """Drain the call's events and, when it stopped for them, resolve them."""
         events, self.watch = drain(self.watch, self.alive)
         stop = int(self.watch[9][wl.STOP]) if acted else wl.STOP_NONE
@@ -191,7 +226,7 @@ class Watcher:
 
     # -- merges and removals -----------------------------------------------------------------
 
-    def _resolve(self, sim: Simulation, events: list[Event]) -> list[Event]:
+    def _resolve(self, sim: WatchedRun, events: list[Event]) -> list[Event]:
         """Apply the merges and removals logged at the last step; return the events, annotated."""
         step, time = sim.steps_done, sim.time
         index = {int(orig): k for k, orig in enumerate(self.alive)}  # scenario index -> current index
@@ -220,7 +255,7 @@ class Watcher:
             self._take_out(sim, gone, into, m, pos, vel, radii, step, time)
         return events
 
-    def _take_in_step_merges(self, sim: Simulation) -> list[Event]:
+    def _take_in_step_merges(self, sim: WatchedRun) -> list[Event]:
         """Take out the bodies the integrator merged inside the last step (TRACE's encounters,
         :func:`orbitsim.integrators.trace.take_merges`); return their events.
 
@@ -251,7 +286,7 @@ class Watcher:
                        husks=True)
         return events
 
-    def _check_step(self, sim: Simulation) -> int:
+    def _check_step(self, sim: WatchedRun) -> int:
         """The end-of-step checks of the last step, on the bodies left after its merges; the
         stop code they ask for."""
         from orbitsim.events.kernels import after_step
@@ -267,7 +302,7 @@ class Watcher:
         self.watch[9][wl.STOP] = wl.STOP_NONE
         return stop
 
-    def _take_out(self, sim: Simulation, gone: np.ndarray, into: np.ndarray, m: np.ndarray, pos: np.ndarray,
+    def _take_out(self, sim: WatchedRun, gone: np.ndarray, into: np.ndarray, m: np.ndarray, pos: np.ndarray,
                   vel: np.ndarray, radii: np.ndarray, step: int, time: float, husks: bool = False) -> None:
         """Remove the bodies ``gone``; unless they are ``husks`` (massless leftovers of merges the
         integrator made and accounted for), the energy their removal changes goes to the offset."""

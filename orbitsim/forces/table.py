@@ -1,6 +1,6 @@
 """The forces of a run as arrays the jitted kernels read: one row per force, dispatched by id.
 
-A scenario's ``forces:`` list (:mod:`orbitsim.forces.schema`) becomes a :class:`ForceSet`. The
+A scenario's ``forces:`` list (:mod:`orbitsim.scenario.forces`) becomes a :class:`ForceSet`. The
 kernels never see names or dictionaries: they loop over the rows of ``ids`` and branch on each id,
 so one compiled kernel serves every combination of forces, and nothing about forces is compiled
 for a run that has none (the stepping loops of such runs never reference this package).

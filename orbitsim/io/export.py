@@ -302,12 +302,8 @@ def _continuation(scenario: Any, changes: dict[str, Any], state: SampleState, wh
 def _with_integrator_state(scenario: Any, stored: Any, where: str, state: SampleState) -> tuple[Any, str]:
     """``scenario`` with the scheme's own coordinates at ``state``, when it keeps any: from the trace's
     checkpoint (the last sample), else by running the stored scenario again to the sample's step."""
-    from orbitsim.scenario.integrator_state import (
-        STATEFUL,
-        state_by_replay,
-        state_fingerprint,
-        state_from_checkpoint,
-    )
+    from orbitsim.scenario.integrator_state import STATEFUL, state_fingerprint
+    from orbitsim.scenario_simulation import state_by_replay, state_from_checkpoint
 
     if scenario.integrator not in STATEFUL:
         return scenario, ""

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.record import RunRecord, SampleCollector, StateDiagnostics
+from orbitsim.record import RunRecord, SampleCollector, StateDiagnostics
 from orbitsim.reference.bridge import ReboundScheme, read_state, rebound_simulation
 from orbitsim.reference.force_pairing import attach_rebound_forces, rebound_force_lines, rebound_refusal
 from orbitsim.reference.sampling import _with_rebound_warnings

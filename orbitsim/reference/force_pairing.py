@@ -44,7 +44,7 @@ __all__ = ["attach_rebound_forces", "forces_summary", "orbitsim_force_lines", "o
 def _entry_text(forces: ForceSet, row: int) -> str:
     """``gr about sun (c = 173.1446327)``: the force as the scenario resolved it (its id's name
     and body indices when the set was built without entries)."""
-    from orbitsim.forces.schema import describe_forces
+    from orbitsim.scenario.forces import describe_forces
 
     if row < len(forces.entries):
         return describe_forces([forces.entries[row]])

@@ -8,7 +8,7 @@ for vectorisation, its multiply-adds fused (a relative change of ~4e-15 per eval
 code rounds differently.
 
 Tolerance on the maximum relative position difference over the run (the metric of
-:func:`orbitsim.analysis.metrics.relative_position_difference`), per sample k:
+:func:`orbitsim.compare.metrics.relative_position_difference`), per sample k:
 
     allowed_k = max(BASE_TOLERANCE * max(1, n_k / BASE_STEPS) ** 1.5,  TWIN_MARGIN * twin_k)
 
@@ -28,7 +28,7 @@ Tolerance on the maximum relative position difference over the run (the metric o
 
 A pair whose difference exceeds ``allowed_k`` at any sample disagrees: ``orbitsim compare`` exits 1
 and names it. A pair within ``allowed_k`` is a pass only while ``allowed_k`` stays below
-``orbitsim.analysis.metrics.TESTABLE_LIMIT`` (1e-3 of the system's size) and the IAS15 reference
+``orbitsim.compare.metrics.TESTABLE_LIMIT`` (1e-3 of the system's size) and the IAS15 reference
 is reliable; otherwise its verdict says why it is not testable and ``compare`` exits 5.
 """
 

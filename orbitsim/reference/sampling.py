@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.record import RunRecord, SampleCollector, StateDiagnostics
+from orbitsim.record import RunRecord, SampleCollector, StateDiagnostics
 from orbitsim.reference.bridge import ReboundScheme, parse_rebound_scheme, read_state, rebound_simulation
 from orbitsim.reference.force_pairing import attach_rebound_forces, rebound_force_lines, rebound_refusal
 

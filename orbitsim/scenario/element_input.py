@@ -24,11 +24,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from orbitsim.scenario.body_set import BodySet
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.frames import AXES, rotate
 
 if TYPE_CHECKING:
-    from orbitsim.scenario.bodies import BodySet
     from orbitsim.scenario.fields import Fields
     from orbitsim.scenario.quantities import QuantityReader
 

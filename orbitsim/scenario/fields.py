@@ -16,9 +16,15 @@ from typing import Any
 import numpy as np
 
 from orbitsim.scenario.errors import ScenarioError
-from orbitsim.scenario.timing import MAX_STEPS, steps_limit_error
 
-__all__ = ["MISSING", "Fields", "check_count", "check_number", "describe", "join_path", "unknown_key_error"]
+__all__ = ["MAX_STEPS", "MISSING", "Fields", "check_count", "check_number", "describe", "join_path",
+           "steps_limit_error", "unknown_key_error"]
+
+#: The most steps a scenario may count: 2**53. A sample's time is ``step * dt`` in float64, which
+#: holds every whole number exactly only up to 2**53; beyond it two steps can share one time (and
+#: beyond 2**63 a step no longer fits the int64 ``step`` column at all). At 10^8 steps a second
+#: this is still three years of stepping, so no real run is refused.
+MAX_STEPS = 2**53
 
 
 class _Missing:
@@ -112,7 +118,7 @@ class Fields:
     def integer(self, name: str, default: Any = MISSING, *, minimum: int | None = None,
                 steps: bool = False) -> int:
         """A whole number (``1000`` or ``1e3``), optionally ``>= minimum``; a count of ``steps`` is at
-        most :data:`~orbitsim.scenario.timing.MAX_STEPS`."""
+        most :data:`MAX_STEPS`."""
         value = self.raw(name, default)
         if value is None:
             return value
@@ -191,7 +197,7 @@ def check_number(value: Any, key: str, *, minimum: float | None = None, positive
 
 
 def check_count(value: Any, key: str) -> int:
-    """``value`` as a count of steps: a whole number from 1 to :data:`~orbitsim.scenario.timing.MAX_STEPS`
+    """``value`` as a count of steps: a whole number from 1 to :data:`MAX_STEPS`
     (a Python or numpy integer; never a bool)."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
         raise ScenarioError(f"must be a whole number >= 1, got {describe(value)}", key=key)
@@ -204,3 +210,9 @@ def _steps_fix(key: str) -> str:
     """How to fix a step count beyond the limit, by its key."""
     fixes = {"output.every": "sample more often", "output.checkpoint.every": "checkpoint more often"}
     return fixes.get(key, "shorten the run or use a longer dt")
+
+
+def steps_limit_error(what: str, key: str, fix: str = "shorten the run or use a longer dt") -> ScenarioError:
+    """The error for a step count beyond :data:`MAX_STEPS`; ``what`` says what was counted."""
+    return ScenarioError(f"{what} is beyond the limit of {MAX_STEPS} steps (2**53: sample times step * dt are "
+                         f"exact in float64 only up to there); {fix}", key=key)

@@ -19,6 +19,10 @@ It belongs to exact bits (:func:`state_fingerprint`): the integrator and its set
 softening, and every body's mass, position and velocity. When any of them differs (the file was
 edited, a command-line option changed dt or the integrator) the state cannot be used: the run
 starts the map from the Cartesian bodies as any run does, and :meth:`Scenario.notes` says so.
+
+This module is the state as a scenario holds it: its keys, checks, fingerprint and text. Putting it
+into a run's work, and recovering it from a checkpoint or by a replay, needs the engine and lives
+beside it, in :mod:`orbitsim.scenario_simulation`.
 """
 
 from __future__ import annotations
@@ -27,26 +31,21 @@ import hashlib
 import json
 import re
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from orbitsim.scenario.data import ScenarioData
 from orbitsim.scenario.fields import Fields, describe
-
-if TYPE_CHECKING:
-    from orbitsim.io.checkpoint import Checkpoint
-    from orbitsim.scenario.model import Scenario
-    from orbitsim.simulation import Simulation
 
 __all__ = [
     "KEYS",
+    "PHASES",
     "STATEFUL",
     "applies",
     "check_integrator_state",
-    "install",
     "mismatch_note",
     "state_fingerprint",
-    "state_from_checkpoint",
     "state_to_dict",
 ]
 
@@ -55,7 +54,7 @@ STATEFUL = ("wisdom_holman",)
 KEYS = ("of", "phase", "mapping_positions", "mapping_velocities")
 _ARRAYS = ("mapping_positions", "mapping_velocities")
 #: wisdom_holman's phases with a mapping state: 1 started, no step yet; 2 owing the closing half drift.
-_PHASES = (1, 2)
+PHASES = (1, 2)
 _SHA256 = re.compile(r"^[0-9a-f]{64}$")
 
 
@@ -74,7 +73,7 @@ def check_integrator_state(value: Any, n_bodies: int) -> dict[str, Any] | None:
     if not _SHA256.match(of):
         raise fields.error("of", f"expected a SHA-256 (64 hex digits), got {describe(of)}")
     phase = fields.integer("phase")
-    if phase not in _PHASES:
+    if phase not in PHASES:
         raise fields.error("phase", f"expected 1 or 2, got {phase}")
     state: dict[str, Any] = {"of": of, "phase": phase}
     for name in _ARRAYS:
@@ -90,7 +89,7 @@ def check_integrator_state(value: Any, n_bodies: int) -> dict[str, Any] | None:
     return state
 
 
-def state_fingerprint(s: Scenario) -> str:
+def state_fingerprint(s: ScenarioData) -> str:
     """SHA-256 of the bits an integrator state belongs to (see the module docstring)."""
     digest = hashlib.sha256()
     head = json.dumps([s.integrator, s.integrator_settings, float(s.dt).hex(), float(s.G).hex(),
@@ -101,13 +100,13 @@ def state_fingerprint(s: Scenario) -> str:
     return digest.hexdigest()
 
 
-def applies(s: Scenario) -> bool:
+def applies(s: ScenarioData) -> bool:
     """Whether ``s`` carries an integrator state its run can continue from."""
     state = s.integrator_state
     return state is not None and s.integrator in STATEFUL and state["of"] == state_fingerprint(s)
 
 
-def mismatch_note(s: Scenario) -> str | None:
+def mismatch_note(s: ScenarioData) -> str | None:
     """The note for a state that does not belong to ``s`` (None when there is none, or it fits)."""
     if s.integrator_state is None or applies(s):
         return None
@@ -120,61 +119,3 @@ def state_to_dict(state: Mapping[str, Any]) -> dict[str, Any]:
     """The state as plain Python for the resolved scenario's text."""
     return {"of": state["of"], "phase": int(state["phase"]),
             **{name: np.asarray(state[name]).tolist() for name in _ARRAYS}}
-
-
-def install(sim: Simulation, s: Scenario) -> None:
-    """Put ``s``'s integrator state into ``sim``'s work (a new run), when it applies."""
-    if not applies(s):
-        return
-    from orbitsim.integrators.wisdom_holman import restore_internal_state
-
-    state = s.integrator_state
-    restore_internal_state(sim.work, {
-        "mapping_positions": state["mapping_positions"].T, "mapping_velocities": state["mapping_velocities"].T,
-        "synced_positions": sim.pos, "synced_velocities": sim.vel, "phase": np.array([state["phase"]])})
-
-
-def state_from_checkpoint(s: Scenario, checkpoint: Checkpoint, step: int, positions: np.ndarray,
-                          velocities: np.ndarray) -> dict[str, Any] | None:
-    """The integrator state at sample ``step`` with state ``positions``, ``velocities`` (N, 3), from
-    the checkpoint of the run ``s`` describes; None when the checkpoint holds another step's state."""
-    if s.integrator not in STATEFUL or checkpoint.state.steps_done != step:
-        return None
-    from orbitsim.checkpoint.state import restore_work
-    from orbitsim.integrators.wisdom_holman import make_work
-
-    work = make_work(s.masses, s.G, s.integrator_settings)
-    if not restore_work(work, checkpoint.state):
-        return None
-    return _state_at(work, positions, velocities)
-
-
-def state_by_replay(s: Scenario, step: int, positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any] | None:
-    """The integrator state at sample ``step`` of the run ``s`` describes, by running ``s`` again from
-    its start to that step: same input, same bits, and where outputs fall does not change the map's
-    state (:mod:`orbitsim.integrators.wisdom_holman`). None unless the replay lands on the sample's
-    exact bits (a trace that was not one run of ``s``)."""
-    if s.integrator not in STATEFUL or not 0 <= step <= s.steps:
-        return None
-    from orbitsim.scenario_simulation import scenario_simulation
-
-    sim = scenario_simulation(s)  # the run that wrote the trace, from s's own integrator state if it has one
-    for _ in sim.chunks(np.array([step], dtype=np.int64), record_positions=False):
-        pass
-    if sim.steps_done != step or sim.n != positions.shape[0]:
-        return None
-    return _state_at(sim.work, positions, velocities)
-
-
-def _state_at(work: tuple[Any, ...], positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any] | None:
-    """The map's state in ``work`` if it was synchronised to exactly ``positions``, ``velocities``."""
-    from orbitsim.integrators.wisdom_holman import internal_state
-
-    arrays = internal_state(work)
-    phase = int(arrays["phase"][0])
-    synced = (np.array_equal(arrays["synced_positions"], positions.T)
-              and np.array_equal(arrays["synced_velocities"], velocities.T))
-    if phase not in _PHASES or not synced:
-        return None
-    return {"phase": phase, "mapping_positions": arrays["mapping_positions"].T.copy(),
-            "mapping_velocities": arrays["mapping_velocities"].T.copy()}

@@ -21,13 +21,16 @@ from orbitsim.scenario.rebound_bodies import expand_rebound_bodies, uses_rebound
 from orbitsim.scenario.timing import adaptive_integrator, check_t_start, resolve_grid, run_span, whole_count
 from orbitsim.scenario.yamlio import parse_yaml
 
-__all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "scenario_from_dict", "scenario_from_stored"]
+__all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "rebound_scenario", "scenario_from_dict",
+           "scenario_from_stored"]
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "t_start", "steps", "t_end", "output", "softening",
             "frame", "bodies", "ephemeris", "generator", "events", "forces", "integrator_state",
             "angles")  # angles: read with the bodies (orbitsim.scenario.bodies)
 OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary")
 CHECKPOINT_KEYS = ("every", "seconds")
+#: Characters a REBOUND file's stem may not bring into a scenario name (which becomes a file name).
+_UNSAFE_NAME_CHARS = re.compile(r"[^A-Za-z0-9_.+-]")
 #: A YAML file in the config directory is a scenario when one of these starts a line: the same
 #: directory holds sweep and benchmark matrices, which are not.
 _SCENARIO_MARK = re.compile(r"^(bodies|ephemeris|generator)\s*:", re.M)
@@ -171,6 +174,24 @@ def scenario_from_stored(text: str, arrays: Mapping[str, Any] | None, source: st
         raise ScenarioError(f"the stored bodies lack the dataset {err}", file=source) from None
     except ScenarioError as err:
         raise err.located(source) from None
+
+
+def rebound_scenario(path: str | os.PathLike[str], *, steps: int | None = None, t_end: float | None = None) -> Scenario:
+    """The scenario of ``orbitsim run sim.bin``: the file's last snapshot, run for ``steps`` or to ``t_end``
+    (an absolute time, after the file's ``t``).
+
+    Raises
+    ------
+    ScenarioError
+        When neither run length is given, or as :func:`~orbitsim.scenario.rebound_bodies.expand_rebound_bodies`.
+    """
+    label = os.fspath(path)
+    if steps is None and t_end is None:
+        raise ScenarioError("a REBOUND file holds no run length: give --steps N or --t-end T", file=label)
+    doc: dict[str, Any] = {"name": _UNSAFE_NAME_CHARS.sub("_", Path(label).stem) or "rebound",
+                           "bodies": {"rebound": Path(label).name}}
+    doc.update({"steps": steps} if steps is not None else {"t_end": t_end})
+    return scenario_from_dict(doc, source=label)
 
 
 def _stored_bodies(arrays: Mapping[str, Any]) -> BodySet:

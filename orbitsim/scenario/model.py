@@ -9,29 +9,27 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from orbitsim.scenario.bodies import check_body_arrays, check_coincident
+from orbitsim.scenario.data import DEFAULT_SAMPLES, ScenarioData
 from orbitsim.scenario.direction import check_direction
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
-from orbitsim.scenario.timing import adaptive_integrator, resolve_steps, run_span
+from orbitsim.scenario.timing import resolve_steps
 
 if TYPE_CHECKING:
     from orbitsim.sampling import SamplePlan
 
 __all__ = ["DEFAULT_SAMPLES", "FRAMES", "POSITIONS_MAX_N", "Scenario", "resolve_steps"]
 
-#: Without ``output.every`` or ``output.interval``, a run keeps about this many samples.
-DEFAULT_SAMPLES = 1000
 #: ``output.positions`` defaults to true up to this many bodies (positions dominate a trace's size).
 POSITIONS_MAX_N = 1000
 FRAMES = ("as_given", "barycentric")
@@ -40,90 +38,14 @@ _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
 @dataclass(frozen=True, eq=False)
-class Scenario:
+class Scenario(ScenarioData):
     """A validated scenario; build it with :func:`~orbitsim.scenario.load_scenario`.
 
-    Attributes
-    ----------
-    name, description : str
-        ``name`` is also the default output file stem (``<name>.h5``).
-    units : str
-        Key of :data:`orbitsim.units.UNIT_SYSTEMS`.
-    G : float
-        Gravitational constant (the unit system's unless the file overrides it).
-    integrator : str
-        Canonical registry name.
-    integrator_settings : dict
-        Settings for the integrator, checked against its module's ``SETTINGS`` schema.
-    dt : float
-        Fixed timestep (> 0); never shortened.
-    steps : int
-        Whole steps to take (resolved from ``t_end`` when the file gave that).
-    t_end : float or None
-        End time as the file gave it, else None; ``t_start + steps * dt <= t_end``.
-    t_start : float
-        Time of step 0 (default 0): sample n is at ``t_start + n * dt``.
-    every : int or None
-        Sample every K steps; None with ``interval`` None means about :data:`DEFAULT_SAMPLES`.
-    interval : float or None
-        Time between samples (on the last whole step not past each sample time).
-    record_positions : bool
-        Whether positions and velocities are stored at every sample.
-    softening : float
-        Plummer softening length (>= 0).
-    frame : str
-        The frame the file asked for; ``positions``/``velocities`` are already in it.
-    names : tuple of str
-        Unique body names.
-    masses, positions, velocities : numpy.ndarray
-        (N,), (N, 3), (N, 3) float64. Treat them as read-only; change them through
-        :meth:`with_overrides`. (They are not flagged read-only because Numba compiles a
-        separate, uncached specialisation for read-only arrays, costing seconds per run.)
-    source : str
-        File path, bundled name or ``"<inline>"``: where error messages point.
-    checkpoint_every, checkpoint_seconds : int or float or None
-        ``output.checkpoint``: save a checkpoint once this many steps, or seconds of wall time,
-        have passed since the last one (see ``docs/checkpoints.md``); None for neither.
-    radii : numpy.ndarray or None
-        (N,) body radii ``r`` for collisions; None when no body gave one (all zero).
-    events : EventsConfig or None
-        The ``events:`` section (:mod:`orbitsim.events`); None runs the plain fixed-dt loop.
-    record_elements : bool
-        ``output.elements``: store every body's osculating elements at every sample.
-    elements_primary : str
-        ``output.primary``: ``heaviest``, ``jacobi`` or a body name.
-    forces : tuple of dict
-        The ``forces:`` list, resolved (:mod:`orbitsim.forces.schema`); empty for none.
+    Its fields and the quantities that follow from them are those of
+    :class:`~orbitsim.scenario.data.ScenarioData` (documented there); this class validates and
+    normalises them on construction, and adds the sampling plan, the notes, the resolved YAML text,
+    its SHA-256 and stored form, and :meth:`with_overrides`.
     """
-
-    name: str
-    description: str
-    units: str
-    G: float
-    integrator: str
-    integrator_settings: dict[str, Any]
-    dt: float
-    steps: int
-    t_end: float | None
-    every: int | None
-    interval: float | None
-    record_positions: bool | None
-    softening: float
-    frame: str
-    names: tuple[str, ...]
-    masses: np.ndarray = field(repr=False)
-    positions: np.ndarray = field(repr=False)
-    velocities: np.ndarray = field(repr=False)
-    source: str = "<inline>"
-    checkpoint_every: int | None = None
-    checkpoint_seconds: float | None = None
-    radii: np.ndarray | None = field(default=None, repr=False)
-    events: Any = None
-    record_elements: bool = False
-    elements_primary: str = "heaviest"
-    forces: tuple[dict[str, Any], ...] = ()
-    t_start: float = 0.0  # time of step 0: sample n is at t_start + n * dt (orbitsim.scenario.timing)
-    integrator_state: dict[str, Any] | None = None  # a scheme's own coordinates (orbitsim.scenario.integrator_state)
 
     def __post_init__(self) -> None:
         try:
@@ -175,7 +97,7 @@ class Scenario:
             self._set("forces", ())
             return
         from orbitsim.forces.compat import check_run
-        from orbitsim.forces.schema import read_forces
+        from orbitsim.scenario.forces import read_forces
 
         self._set("forces", read_forces(self.forces, self.names, self.units, masses=self.masses, G=self.G))
         for k, entry in enumerate(self.forces):
@@ -228,67 +150,6 @@ class Scenario:
 
         for name, value in check_time(self).items():
             self._set(name, value)
-
-    # -- derived quantities ------------------------------------------------------------------
-
-    @property
-    def n_bodies(self) -> int:
-        """Number of bodies N."""
-        return int(self.masses.shape[0])
-
-    @property
-    def dissipative(self) -> bool:
-        """Whether a force adds or removes energy on purpose (``migration``): the energy error then
-        measures the force, not the integrator (:attr:`orbitsim.forces.table.ForceSet.dissipative`)."""
-        return any(entry["force"] == "migration" for entry in self.forces)
-
-    @property
-    def adaptive(self) -> bool:
-        """Whether the integrator chooses its own steps (ias15 unless ``adaptive: false``)."""
-        return adaptive_integrator(self.integrator, self.integrator_settings)
-
-    @property
-    def grid_dt(self) -> float:
-        """The run loop's grid: ``dt`` for a fixed-step scheme; for an adaptive one the output
-        interval (``output.interval``, or t_end / DEFAULT_SAMPLES), on which samples land exactly."""
-        if not self.adaptive:
-            return self.dt
-        return self.interval if self.interval is not None else run_span(self.t_end, self.t_start) / DEFAULT_SAMPLES
-
-    @property
-    def run_settings(self) -> dict[str, Any]:
-        """The integrator settings a run passes to its scheme: an adaptive one also gets its first
-        trial step (``dt``) and where its last output interval ends (``t_end``)."""
-        if not self.adaptive:
-            return dict(self.integrator_settings)
-        return {**self.integrator_settings, "first_dt": self.dt, "t_end": self.t_end}
-
-    @property
-    def end_time(self) -> float:
-        """Time of the last step, ``t_start + steps * dt`` (<= ``t_end`` when that was given); ``t_end`` for
-        an adaptive run, whose last sample lands on it exactly."""
-        if self.adaptive:
-            return float(self.t_end)
-        return self.t_start + self.steps * self.dt
-
-    @property
-    def t_end_is_whole(self) -> bool:
-        """False when ``t_end`` was given and is not a whole number of steps."""
-        return self.t_end is None or resolve_steps(self.t_end, self.dt, self.t_start)[1]
-
-    @property
-    def sample_every(self) -> int | None:
-        """The ``every`` actually used (the default when neither every nor interval was given)."""
-        if self.interval is not None:
-            return None
-        if self.adaptive:
-            return 1  # every output interval
-        return self.every if self.every is not None else max(1, math.ceil(self.steps / DEFAULT_SAMPLES))
-
-    @property
-    def checkpoints(self) -> bool:
-        """Whether ``output.checkpoint`` asks for periodic checkpoints."""
-        return self.checkpoint_every is not None or self.checkpoint_seconds is not None
 
     def sample_plan(self) -> SamplePlan:
         """The sampling plan: step 0 first, ``steps`` last, produced block by block."""
@@ -374,7 +235,7 @@ class Scenario:
         if cached is None:
             from orbitsim.scenario.serialize import stored_form
 
-            cached = stored_form(self)
+            cached = stored_form(self, self.to_yaml)
             self._set("_stored", cached)
         return cached
 

@@ -7,15 +7,13 @@ Some fields hang together, so replacing one resolves the others: ``steps`` and `
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from orbitsim.scenario.data import DEFAULT_SAMPLES, ScenarioData
 from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, unknown_key_error
 from orbitsim.scenario.timing import check_t_start, resolve_steps, run_span
-
-if TYPE_CHECKING:
-    from orbitsim.scenario.model import Scenario
 
 __all__ = ["OVERRIDABLE", "resolve_overrides"]
 
@@ -27,7 +25,7 @@ OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt",
 _STATE_OF = ("integrator", "integrator_settings", "dt", "G", "softening", "names", "masses", "positions", "velocities")
 
 
-def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, Any]:
+def resolve_overrides(scenario: ScenarioData, changes: dict[str, Any]) -> dict[str, Any]:
     """The fields to replace in ``scenario`` for ``changes`` (``None`` values ignored).
 
     Raises
@@ -58,7 +56,7 @@ def resolve_overrides(scenario: Scenario, changes: dict[str, Any]) -> dict[str, 
 _TIME_FIELDS = {"dt": "dt", "t_start": "t_start", "t_end": "t_end", "interval": "output.interval"}
 
 
-def _convert_times(scenario: Scenario, changes: dict[str, Any]) -> None:
+def _convert_times(scenario: ScenarioData, changes: dict[str, Any]) -> None:
     """Times given with a unit (``dt="1 day"``, from ``run --dt "1 day"``) in the scenario's units; numbers
     are left as they are."""
     from orbitsim.scenario.quantities import scenario_time
@@ -69,7 +67,7 @@ def _convert_times(scenario: Scenario, changes: dict[str, Any]) -> None:
             changes[name] = scenario_time(changes[name], scenario.units, G, key)
 
 
-def _resolve_integrator_change(scenario: Scenario, changes: dict[str, Any]) -> None:
+def _resolve_integrator_change(scenario: ScenarioData, changes: dict[str, Any]) -> None:
     integrator = changes.get("integrator")
     if isinstance(integrator, Mapping):
         settings = {k: v for k, v in integrator.items() if k != "name"}
@@ -88,7 +86,7 @@ def _resolve_integrator_change(scenario: Scenario, changes: dict[str, Any]) -> N
             changes["integrator_settings"] = {}
 
 
-def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
+def _resolve_time_change(scenario: ScenarioData, changes: dict[str, Any]) -> None:
     if "steps" in changes and "t_end" in changes:
         raise ScenarioError("give only one of steps or t_end, not both", key="t_end")
     if _adaptive_after(scenario, changes):
@@ -110,7 +108,7 @@ def _resolve_time_change(scenario: Scenario, changes: dict[str, Any]) -> None:
             raise ScenarioError(err.reason, key=blame) from None
 
 
-def _adaptive_after(scenario: Scenario, changes: dict[str, Any]) -> bool:
+def _adaptive_after(scenario: ScenarioData, changes: dict[str, Any]) -> bool:
     """Whether the scenario's integrator after ``changes`` chooses its own steps (ias15)."""
     from orbitsim.scenario.timing import adaptive_integrator
 
@@ -119,11 +117,10 @@ def _adaptive_after(scenario: Scenario, changes: dict[str, Any]) -> bool:
     return adaptive_integrator(integrator, settings)
 
 
-def _resolve_adaptive_time(scenario: Scenario, changes: dict[str, Any]) -> None:
+def _resolve_adaptive_time(scenario: ScenarioData, changes: dict[str, Any]) -> None:
     """An adaptive run's grid is its output grid: ``t_end`` sets the end time exactly and
     ``steps`` becomes the number of output intervals; ``dt`` (the first trial step) changes neither.
     A ``steps`` override counts output intervals, so it needs ``output.interval``."""
-    from orbitsim.scenario.model import DEFAULT_SAMPLES
     from orbitsim.scenario.timing import resolve_grid
 
     t_start = check_t_start(changes.get("t_start", scenario.t_start))

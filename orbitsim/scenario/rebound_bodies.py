@@ -5,13 +5,12 @@ from the file's exact bits), and the file also supplies ``G``, ``dt``, ``softeni
 integrator wherever the scenario gives none: positions and velocities mean something only in the
 file's units, whose ``G`` is the file's. The file's time ``t`` becomes ``t_start`` (the run's clock
 continues the file's; ``t_end`` is then an absolute time after it) unless the scenario gives one.
-:func:`rebound_scenario` is ``orbitsim run sim.bin``: the same, with only the run length from the command line.
+:func:`~orbitsim.scenario.loader.rebound_scenario` is ``orbitsim run sim.bin``: the same, with only the run length
+from the command line.
 """
 
 from __future__ import annotations
 
-import os
-import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -19,10 +18,9 @@ from typing import Any
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import describe
 
-__all__ = ["REBOUND_KEYS", "expand_rebound_bodies", "rebound_scenario", "uses_rebound_file"]
+__all__ = ["REBOUND_KEYS", "expand_rebound_bodies", "uses_rebound_file"]
 
 REBOUND_KEYS = ("rebound", "snapshot", "names")
-_UNSAFE_NAME_CHARS = re.compile(r"[^A-Za-z0-9_.+-]")
 
 
 def uses_rebound_file(doc: Any) -> bool:
@@ -98,23 +96,3 @@ def _bodies(state: Any, names: list[str]) -> list[dict[str, Any]]:
             body["r"] = r[i]
         bodies.append(body)
     return bodies
-
-
-def rebound_scenario(path: str | os.PathLike[str], *, steps: int | None = None, t_end: float | None = None) -> Any:
-    """The scenario of ``orbitsim run sim.bin``: the file's last snapshot, run for ``steps`` or to ``t_end``
-    (an absolute time, after the file's ``t``).
-
-    Raises
-    ------
-    ScenarioError
-        When neither run length is given, or as :func:`expand_rebound_bodies`.
-    """
-    from orbitsim.scenario.loader import scenario_from_dict
-
-    label = os.fspath(path)
-    if steps is None and t_end is None:
-        raise ScenarioError("a REBOUND file holds no run length: give --steps N or --t-end T", file=label)
-    doc: dict[str, Any] = {"name": _UNSAFE_NAME_CHARS.sub("_", Path(label).stem) or "rebound",
-                           "bodies": {"rebound": Path(label).name}}
-    doc.update({"steps": steps} if steps is not None else {"t_end": t_end})
-    return scenario_from_dict(doc, source=label)

@@ -11,15 +11,13 @@ every scenario written before they existed stay the same.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 
+from orbitsim.scenario.data import ScenarioData
 from orbitsim.scenario.yamlio import dump_value, format_float
-
-if TYPE_CHECKING:
-    from orbitsim.scenario.model import Scenario
 
 __all__ = ["BODIES_GROUP", "BODY_ARRAYS", "STORED_TEXT_MAX", "scenario_text_sha256", "scenario_to_dict",
            "scenario_to_yaml", "scenario_yaml_lines", "stored_form"]
@@ -27,7 +25,7 @@ __all__ = ["BODIES_GROUP", "BODY_ARRAYS", "STORED_TEXT_MAX", "scenario_text_sha2
 _STATE_ARRAYS = ("mapping_positions", "mapping_velocities")
 
 
-def scenario_to_dict(s: Scenario, bodies: bool = True) -> dict[str, Any]:
+def scenario_to_dict(s: ScenarioData, bodies: bool = True) -> dict[str, Any]:
     """The fully resolved scenario as plain Python (what :func:`scenario_to_yaml` writes); without
     the ``bodies`` list when ``bodies`` is false (a large scenario's rows are written one by one)."""
     integrator: Any = s.integrator
@@ -62,7 +60,7 @@ def scenario_to_dict(s: Scenario, bodies: bool = True) -> dict[str, Any]:
     return doc
 
 
-def _body_dicts(s: Scenario) -> list[dict[str, Any]]:
+def _body_dicts(s: ScenarioData) -> list[dict[str, Any]]:
     bodies = []
     for k, (name, m, x, v) in enumerate(zip(s.names, s.masses, s.positions, s.velocities, strict=True)):
         body = {"name": name, "m": float(m), "x": [float(c) for c in x], "v": [float(c) for c in v]}
@@ -72,12 +70,12 @@ def _body_dicts(s: Scenario) -> list[dict[str, Any]]:
     return bodies
 
 
-def scenario_to_yaml(s: Scenario) -> str:
+def scenario_to_yaml(s: ScenarioData) -> str:
     """The fully resolved scenario as YAML text; loading it reproduces the same bits."""
     return "\n".join(scenario_yaml_lines(s)) + "\n"
 
 
-def scenario_text_sha256(s: Scenario) -> str:
+def scenario_text_sha256(s: ScenarioData) -> str:
     """Hex SHA-256 of :func:`scenario_to_yaml`'s UTF-8 text, hashed line by line: a large
     scenario's text (176 MB for 10^6 bodies) is never held in memory at once."""
     digest = hashlib.sha256()
@@ -87,7 +85,7 @@ def scenario_text_sha256(s: Scenario) -> str:
     return digest.hexdigest()
 
 
-def scenario_yaml_lines(s: Scenario) -> Iterator[str]:
+def scenario_yaml_lines(s: ScenarioData) -> Iterator[str]:
     """The lines of :func:`scenario_to_yaml` (without their newlines), one body per line."""
     doc = scenario_to_dict(s, bodies=False)
     state = doc.pop("integrator_state", None)
@@ -115,7 +113,7 @@ def _head_lines(doc: dict[str, Any]) -> Iterator[str]:
             yield f"{key}: {dump_value(value)}"
 
 
-def _body_lines(s: Scenario) -> Iterator[str]:
+def _body_lines(s: ScenarioData) -> Iterator[str]:
     """One flow mapping per body, written row by row: far faster than the generic writer."""
     f = format_float
     radii = s.radii.tolist() if s.radii is not None else None
@@ -152,17 +150,18 @@ BODIES_GROUP = "scenario_bodies"
 BODIES_IN_DATASETS = "# bodies: {n} rows, in the datasets {group}/{{{names}}} beside this text (one row per body)"
 
 
-def stored_form(s: Scenario) -> tuple[str, dict[str, np.ndarray] | None]:
+def stored_form(s: ScenarioData, whole_text: Callable[[], str]) -> tuple[str, dict[str, np.ndarray] | None]:
     """The scenario as a trace or checkpoint stores it: ``(text, None)`` with the whole resolved
     text when it is at most :data:`STORED_TEXT_MAX` bytes, else ``(text, arrays)``: the text without
     the per-body rows (a comment in their place) and the rows as arrays by :data:`BODY_ARRAYS` name
-    (``r`` only with radii, the ``mapping_*`` only with an integrator state).
+    (``r`` only with radii, the ``mapping_*`` only with an integrator state). ``whole_text()`` gives the
+    whole text (:meth:`Scenario.to_yaml <orbitsim.scenario.model.Scenario.to_yaml>`, which keeps it).
 
     Either form loads back to the same bits (:func:`orbitsim.scenario.loader.scenario_from_stored`),
     and the scenario's SHA-256 is the whole text's in both.
     """
     if s.n_bodies * _MIN_ROW_BYTES <= STORED_TEXT_MAX:
-        text = s.to_yaml()
+        text = whole_text()
         if len(text.encode("utf-8")) <= STORED_TEXT_MAX:
             return text, None
     arrays: dict[str, np.ndarray] = {"names": np.array(s.names, dtype=object), "m": s.masses, "x": s.positions,

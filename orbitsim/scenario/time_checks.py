@@ -1,4 +1,4 @@
-"""Validation of a :class:`~orbitsim.scenario.model.Scenario`'s time and output fields.
+"""Validation of a scenario's time and output fields (of its :class:`~orbitsim.scenario.data.ScenarioData`).
 
 :func:`check_time` reads the raw fields (``dt``, ``steps``, ``t_start``, ``t_end``, ``output.every``,
 ``output.interval``, ``output.checkpoint``) and returns their normalised values, or raises the
@@ -10,8 +10,9 @@ whole steps of dt, an adaptive one in output intervals, its dt only the first tr
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from orbitsim.scenario.data import DEFAULT_SAMPLES, ScenarioData
 from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_count, check_number
@@ -25,13 +26,10 @@ from orbitsim.scenario.timing import (
     steps_limit_error,
 )
 
-if TYPE_CHECKING:
-    from orbitsim.scenario.model import Scenario
-
 __all__ = ["check_time"]
 
 
-def check_time(s: Scenario) -> dict[str, Any]:
+def check_time(s: ScenarioData) -> dict[str, Any]:
     """The normalised time and output fields of ``s`` (only those that are set), or a ScenarioError."""
     dt = check_dt(s.dt)  # < 0 runs backwards (orbitsim.scenario.direction)
     fields: dict[str, Any] = {"dt": dt, "steps": check_count(s.steps, "steps"), "t_start": check_t_start(s.t_start)}
@@ -48,7 +46,7 @@ def check_time(s: Scenario) -> dict[str, Any]:
     return fields
 
 
-def _fixed(s: Scenario, dt: float, steps: int, t_start: float) -> dict[str, Any]:
+def _fixed(s: ScenarioData, dt: float, steps: int, t_start: float) -> dict[str, Any]:
     """A fixed-dt run: ``steps`` whole steps of ``dt``; ``t_end``, when given, must agree."""
     fields: dict[str, Any] = {}
     if not math.isfinite(t_start + steps * dt):
@@ -72,11 +70,9 @@ def _fixed(s: Scenario, dt: float, steps: int, t_start: float) -> dict[str, Any]
     return fields
 
 
-def _adaptive(s: Scenario, steps: int, t_start: float) -> dict[str, Any]:
+def _adaptive(s: ScenarioData, steps: int, t_start: float) -> dict[str, Any]:
     """An adaptive scheme's run: ``t_end`` and ``output.interval`` make its grid, ``dt`` is
     only the first trial step, and ``steps`` counts output intervals."""
-    from orbitsim.scenario.model import DEFAULT_SAMPLES
-
     name = s.integrator
     if s.t_end is None:
         raise ScenarioError(f"{name} chooses its own steps: give t_end (the end time), not steps", key="steps")

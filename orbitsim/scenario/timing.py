@@ -5,7 +5,8 @@ A step is never shortened, so ``t_end`` resolves to the largest step count with
 except that a ``t_end`` a whole number of steps long up to round-off means exactly that many steps.
 
 Every step count of a scenario (``steps``, ``t_end / dt``, ``output.every``,
-``output.interval / dt``, ``output.checkpoint.every``) is at most :data:`MAX_STEPS`.
+``output.interval / dt``, ``output.checkpoint.every``) is at most :data:`MAX_STEPS` (2**53, defined
+with the single-value checks in :mod:`orbitsim.scenario.fields`, which refuse a count beyond it).
 
 A run's clock starts at ``t_start`` (default 0; :func:`check_t_start`): sample n is at
 ``t_start + n * dt`` and ``t_end`` is still the absolute end time, so the steps are counted over
@@ -22,15 +23,10 @@ from collections.abc import Mapping
 from typing import Any
 
 from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.fields import MAX_STEPS, check_number, steps_limit_error
 
 __all__ = ["MAX_STEPS", "adaptive_integrator", "check_t_start", "resolve_grid", "resolve_steps", "run_span",
            "steps_limit_error", "whole_count"]
-
-#: The most steps a scenario may count: 2**53. A sample's time is ``step * dt`` in float64, which
-#: holds every whole number exactly only up to 2**53; beyond it two steps can share one time (and
-#: beyond 2**63 a step no longer fits the int64 ``step`` column at all). At 10^8 steps a second
-#: this is still three years of stepping, so no real run is refused.
-MAX_STEPS = 2**53
 
 #: t_end / dt within this relative distance of a whole number counts as whole: ``t_end = 1`` with
 #: ``dt = 0.1`` gives 9.999999999999998 by round-off and must mean 10 steps, not 9.
@@ -40,8 +36,6 @@ _WHOLE_STEPS_RTOL = 1e-9
 def check_t_start(value: Any) -> float:
     """``t_start`` as a finite float; ``-0.0`` becomes ``0.0`` (it is written only when non-zero, so
     both must mean the same clock)."""
-    from orbitsim.scenario.fields import check_number  # fields imports this module (MAX_STEPS)
-
     return check_number(value, "t_start") + 0.0
 
 
@@ -127,9 +121,3 @@ def _whole_steps(t_end: float, dt: float, ratio: float, what: str = "t_end") -> 
     if steps < 1:
         raise ScenarioError(f"{what} = {t_end:g} is shorter than one step (dt = {dt:g})", key="t_end")
     return steps, False
-
-
-def steps_limit_error(what: str, key: str, fix: str = "shorten the run or use a longer dt") -> ScenarioError:
-    """The error for a step count beyond :data:`MAX_STEPS`; ``what`` says what was counted."""
-    return ScenarioError(f"{what} is beyond the limit of {MAX_STEPS} steps (2**53: sample times step * dt are "
-                         f"exact in float64 only up to there); {fix}", key=key)

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.plotstyle import figure_style, save
+from orbitsim.plots.style import figure_style, save
 
 __all__ = ["draw_resonance", "libration_amplitude", "parse_resonance", "pick_pair", "resonant_angles"]
 
@@ -102,7 +102,7 @@ def draw_resonance(data: dict[str, Any], resonance: tuple[int, int], pair: tuple
                    title: str, time_unit: str) -> Path:
     """Two panels against time: both resonant angles (dots), and the period ratio with P/Q marked.
 
-    ``data`` is :func:`orbitsim.analysis.element_figure.read_elements`' dictionary.
+    ``data`` is :func:`orbitsim.plots.elements.read_elements`' dictionary.
     """
     p, q = resonance
     inner, outer = pair

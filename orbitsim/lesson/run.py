@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.metrics import energy_drift_slope, max_abs_energy_error, position_error
-from orbitsim.analysis.record import RunRecord
+from orbitsim.compare.metrics import energy_drift_slope, max_abs_energy_error, position_error
+from orbitsim.record import RunRecord
 
 #: The three schemes of the lesson, left to right, with the one-line moral of each panel.
 LESSON: tuple[tuple[str, str, str], ...] = (
@@ -29,6 +29,9 @@ LESSON: tuple[tuple[str, str, str], ...] = (
     ("semi_implicit_euler", "semi-implicit Euler", "symplectic, 1st order: energy oscillates in a band"),
     ("verlet", "velocity Verlet", "symplectic, 2nd order: the flattest energy"),
 )
+#: One colour per scheme of the lesson, the same in both figures and on the page: warm for the
+#: unstable, cool for the good.
+COLORS = {"euler": "#d62728", "semi_implicit_euler": "#ff7f0e", "verlet": "#1f77b4"}
 #: The sweep of the second figure: the lesson's dt times these factors. Down to dt/16 so that
 #: semi-implicit Euler and Verlet reach their asymptotic slopes; up to 4 dt (about 37 steps per
 #: orbit), where the orbits of the coarsest runs are drawn.
@@ -78,7 +81,7 @@ def run_lesson(scenario: Any, *, progress: Any = None) -> LessonResult:
     The sweep keeps the end time: at ``dt * f`` it takes the whole steps that fit in the lesson's
     end time and is compared with IAS15 stopped at exactly that many steps' time.
     """
-    from orbitsim.analysis.compare import run_orbitsim
+    from orbitsim.compare.run import run_orbitsim
     from orbitsim.reference.sampling import run_reference
     from orbitsim.scenario import resolve_steps
     from orbitsim.simulation import sample_steps_every

@@ -112,7 +112,7 @@ def _primary_text(primary: str) -> str:
 def draw_elements(data: dict[str, Any], target: Path, title: str, length: str, time_unit: str,
                   max_legend: int, events: dict[str, np.ndarray] | None = None) -> None:
     """Draw one panel per element against time into ``target`` (format from its suffix); with
-    ``events`` (kind -> times, :func:`orbitsim.analysis.event_marks.read_event_times`) each panel
+    ``events`` (kind -> times, :func:`orbitsim.plots.event_marks.read_event_times`) each panel
     marks them, and the last panel's legend names the kinds."""
     import matplotlib
 
@@ -132,7 +132,7 @@ def draw_elements(data: dict[str, Any], target: Path, title: str, length: str, t
         ax.set_ylabel(LABELS[name].format(length=length))
         ax.grid(True, alpha=0.3)
         if events:
-            from orbitsim.analysis.event_marks import mark_events
+            from orbitsim.plots.event_marks import mark_events
 
             mark_events(ax, events, legend=ax is axes[-1])
     shown = f"{len(bodies)} of {data['n_bodies']} bodies" if len(bodies) < data["n_bodies"] else "every body"

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from orbitsim.analysis.record import RunRecord
+from orbitsim.record import RunRecord
 from orbitsim.reference.pairs import MatchedPair, allowed_difference, nominal_tolerance
 
 #: A twin divergence above this means the scenario amplifies round-off so much (chaos, close

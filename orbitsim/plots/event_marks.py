@@ -36,8 +36,8 @@ def read_event_times(path: str) -> dict[str, np.ndarray]:
     """
     import h5py
 
-    from orbitsim.analysis.trace_events import event_times
     from orbitsim.io.schema import TraceError
+    from orbitsim.io.trace_events import event_times
 
     with h5py.File(path, "r") as f:
         times = event_times(f)

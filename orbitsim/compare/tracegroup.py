@@ -2,7 +2,7 @@
 
 :class:`orbitsim.io.trace.TraceWriter` streams one run into one whole file. A comparison holds
 many finished runs in one file (``compare.h5``), so this module writes each
-:class:`~orbitsim.analysis.record.RunRecord` into a *group* with the same attributes, dataset
+:class:`~orbitsim.record.RunRecord` into a *group* with the same attributes, dataset
 names, shapes and dtypes as a trace file's root (the schema, names and version constants are
 imported from :mod:`orbitsim.io.trace`, so the two cannot drift apart). :func:`read_trace_group`
 reads a group back as a :class:`~orbitsim.io.trace.Trace`.
@@ -27,10 +27,10 @@ import h5py
 import numpy as np
 
 from orbitsim._version import __version__
-from orbitsim.analysis.record import RunRecord
 from orbitsim.io.schema import py_value
 from orbitsim.io.trace import TRACE_FORMAT, TRACE_VERSION, Trace
 from orbitsim.provenance import provenance
+from orbitsim.record import RunRecord
 
 #: Identifies a comparison file (its groups are traces, the file itself is not one).
 COMPARE_FORMAT = "orbitsim.compare"

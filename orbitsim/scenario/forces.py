@@ -8,7 +8,8 @@ of ``gr`` as a body name, a unit ``spin_axis``. Reading a resolved entry again g
 for bit, which the stored scenario's SHA-256 relies on.
 
 Every problem is a one-line :class:`~orbitsim.scenario.ScenarioError` naming the key path
-(``forces[1].J2``); the scenario adds the file and the line.
+(``forces[1].J2``); the scenario adds the file and the line. This is the reader of one section of a
+scenario, beside the others in this package; the force kernels it feeds are in :mod:`orbitsim.forces`.
 """
 
 from __future__ import annotations
@@ -17,17 +18,15 @@ import difflib
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from orbitsim.forces.table import FORCE_IDS, MIGRATION, N_PARAMS, P_C, P_J2, P_J4, P_R_EQ, P_SPIN, ForceSet
+from orbitsim.scenario.data import ScenarioData
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import Fields, describe, join_path, unknown_key_error
 from orbitsim.units import AU_M, DAY_S, GAUSSIAN_YEAR_DAYS, UNIT_SYSTEMS
-
-if TYPE_CHECKING:
-    from orbitsim.scenario.model import Scenario
 
 __all__ = ["C_M_PER_S", "FORCE_KEYS", "GR_FORCES", "SPEED_OF_LIGHT", "TAU_KEYS", "default_c", "describe_forces",
            "force_set", "read_forces"]
@@ -288,7 +287,7 @@ def describe_forces(entries: Sequence[Mapping[str, Any]]) -> str:
     return ", ".join(words)
 
 
-def force_set(scenario: Scenario) -> ForceSet | None:
+def force_set(scenario: ScenarioData) -> ForceSet | None:
     """The arrays of a scenario's forces, or None when it has none.
 
     Body names become indices in the scenario's body order; ``params`` columns are those of

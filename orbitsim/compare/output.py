@@ -40,11 +40,15 @@ import math
 from pathlib import Path
 from typing import Any
 
-from orbitsim.analysis.compare import CompareResult
-from orbitsim.analysis.compare_references import reference_rows, references_table
-from orbitsim.analysis.figures import compare_figures
-from orbitsim.analysis.metrics import NOT_COMPARABLE, REFERENCE_ENERGY_LIMIT, TESTABLE_LIMIT
-from orbitsim.analysis.report import (
+from orbitsim.compare.figures import compare_figures
+from orbitsim.compare.metrics import NOT_COMPARABLE, REFERENCE_ENERGY_LIMIT, TESTABLE_LIMIT
+from orbitsim.compare.references import reference_rows, references_table
+from orbitsim.compare.run import CompareResult
+from orbitsim.compare.tracegroup import write_file_attrs, write_trace_group
+from orbitsim.io.h5safe import in_memory, new_file
+from orbitsim.provenance import provenance
+from orbitsim.reference.pairs import ENCOUNTER_CHAOS, TWIN_MARGIN
+from orbitsim.report import (
     Figure,
     Report,
     Section,
@@ -54,10 +58,6 @@ from orbitsim.analysis.report import (
     reproduce_section,
     scenario_table,
 )
-from orbitsim.analysis.tracegroup import write_file_attrs, write_trace_group
-from orbitsim.io.h5safe import in_memory, new_file
-from orbitsim.provenance import provenance
-from orbitsim.reference.pairs import ENCOUNTER_CHAOS, TWIN_MARGIN
 
 SUMMARY_FORMAT = "orbitsim.compare.summary"
 SUMMARY_VERSION = 4
@@ -196,7 +196,7 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
 
 def forces_table(result: CompareResult) -> Table:
     """How each run applies each of the scenario's forces: orbitsim's runs and REBOUND's side by side."""
-    from orbitsim.forces.schema import describe_forces
+    from orbitsim.scenario.forces import describe_forces
 
     records = [*result.runs, *result.references.values()] or [*result.runs, result.reference]
     table = Table(["run", "forces and how they are applied"],
@@ -226,7 +226,7 @@ def encounter_sentences(result: CompareResult) -> list[str]:
 
 
 def _time_unit(scenario: Any) -> str:
-    from orbitsim.analysis.plotstyle import unit_labels
+    from orbitsim.plots.style import unit_labels
 
     return unit_labels(getattr(scenario, "units", ""))[0]
 
@@ -252,7 +252,7 @@ def write_compare_outputs(result: CompareResult, outdir: Path, command: str) -> 
     paths["summary"] = summary
     figures = compare_figures(result, outdir)
     paths.update(figures)
-    from orbitsim.analysis.report import write_report
+    from orbitsim.report import write_report
 
     paths["markdown"], paths["html"] = write_report(build_report(result, figures, command), outdir)
     return paths

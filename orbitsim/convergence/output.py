@@ -21,10 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.convergence import ConvergenceResult, ConvergenceSeries
-from orbitsim.analysis.plotstyle import Palette, figure_style, save, ticks_at, unit_labels
-from orbitsim.analysis.report import Figure, Report, Section, Table, fmt, reproduce_section, scenario_table
+from orbitsim.convergence.run import ConvergenceResult, ConvergenceSeries
+from orbitsim.plots.style import Palette, figure_style, save, ticks_at, unit_labels
 from orbitsim.provenance import provenance
+from orbitsim.report import Figure, Report, Section, Table, fmt, reproduce_section, scenario_table
 
 
 def _family(series: ConvergenceSeries) -> str:
@@ -147,7 +147,7 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
     steps = round(result.end_time / abs(sc.dt)) if sc.dt else 0
     sections = [Section("Fitted orders", [orders]), Section("Errors", [errors, walls])]
     if getattr(sc, "forces", ()):
-        from orbitsim.forces.schema import describe_forces
+        from orbitsim.scenario.forces import describe_forces
 
         forces = Table(["integrator", "forces and how they are applied"],
                        [[s.display, "; ".join(s.forces) or "none"] for s in result.series])
@@ -164,7 +164,7 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
 def write_convergence_outputs(result: ConvergenceResult, outdir: Path, command: str,
                               tolerance: float) -> dict[str, Path]:
     """Write summary.json, both figures and the report into ``outdir``; returns name -> path."""
-    from orbitsim.analysis.report import write_report
+    from orbitsim.report import write_report
 
     outdir.mkdir(parents=True, exist_ok=True)
     summary = outdir / "summary.json"

@@ -1,4 +1,4 @@
-"""Figures and report of the demo's lesson (see :mod:`orbitsim.analysis.lesson`).
+"""Figures and report of the demo's lesson (see :mod:`orbitsim.lesson.run`).
 
 Figure 1 (``lesson_orbits.png``): three columns, one per scheme. Top: the planet's path in the x-y
 plane over the REBOUND IAS15 reference (faint), on shared axes so the sizes compare. Bottom: its
@@ -17,9 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.lesson import DT_FACTORS, LESSON, LessonResult, lesson_metrics
-from orbitsim.analysis.plotstyle import REFERENCE_COLOR, figure_style, save, ticks_at, unit_labels
-from orbitsim.analysis.report import (
+from orbitsim.lesson.run import COLORS, DT_FACTORS, LESSON, LessonResult, lesson_metrics
+from orbitsim.plots.style import REFERENCE_COLOR, figure_style, save, ticks_at, unit_labels
+from orbitsim.provenance import provenance
+from orbitsim.report import (
     Figure,
     Report,
     Section,
@@ -29,10 +30,6 @@ from orbitsim.analysis.report import (
     reproduce_section,
     scenario_table,
 )
-from orbitsim.provenance import provenance
-
-#: One colour per scheme, the same in both figures: warm for the unstable, cool for the good.
-COLORS = {"euler": "#d62728", "semi_implicit_euler": "#ff7f0e", "verlet": "#1f77b4"}
 
 
 def _body(result: LessonResult) -> int:
@@ -177,8 +174,8 @@ def build_report(result: LessonResult, figures: dict[str, Path], command: str) -
 def write_lesson_outputs(result: LessonResult, outdir: Path, command: str) -> dict[str, Path]:
     """Write both figures, summary.json, report.md/.html and the page to play, lesson.html, into
     ``outdir`` (replacing them)."""
-    from orbitsim.analysis.lesson_page import page_runs, write_lesson_page
-    from orbitsim.analysis.report import write_report
+    from orbitsim.lesson.page import page_runs, write_lesson_page
+    from orbitsim.report import write_report
 
     outdir.mkdir(parents=True, exist_ok=True)
     figures = {"orbits": orbits_figure(result, outdir / "lesson_orbits.png"),

@@ -2,9 +2,9 @@
 
 For each dt the run takes ``n = resolve_steps(T, dt)`` whole steps and is compared with the
 reference stopped exactly at ``n * dt``, using the relative position error of
-:mod:`orbitsim.analysis.metrics`. The order of accuracy is the slope of log(error) against
+:mod:`orbitsim.compare.metrics`. The order of accuracy is the slope of log(error) against
 log(dt) over the ladder's asymptotic range (the diffrax-style check: the error of a p-th order
-scheme scales as dt^p there); :mod:`orbitsim.analysis.convergence_fit` finds that range and, when
+scheme scales as dt^p there); :mod:`orbitsim.convergence.fit` finds that range and, when
 there is none, says why.
 
 The default ladder (the scenario's dt times :data:`DEFAULT_FACTORS`) is extended per scheme until
@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.convergence_fit import (
+from orbitsim.compare.metrics import relative_position_difference
+from orbitsim.convergence.fit import (
     CEILING,
     FIT_POINTS,
     FITTED,
@@ -37,8 +38,7 @@ from orbitsim.analysis.convergence_fit import (
     OrderFit,
     fit_order,
 )
-from orbitsim.analysis.metrics import relative_position_difference
-from orbitsim.analysis.record import RunRecord
+from orbitsim.record import RunRecord
 from orbitsim.reference.bridge import ReboundScheme
 
 __all__ = ["CEILING", "DEFAULT_FACTORS", "FIT_POINTS", "FLOOR_MARGIN", "MAX_EXTENSIONS", "MAX_EXTENSION_STEPS",
@@ -88,7 +88,7 @@ class ConvergenceSeries:
 
     ``adaptive`` series (IAS15) take ``dt`` only as a first trial step: they are run and shown,
     but have no order in dt. ``note`` says why the order is what it is (or missing), ``fit_kind``
-    is :func:`~orbitsim.analysis.convergence_fit.fit_order`'s kind, ``forces`` how the series
+    is :func:`~orbitsim.convergence.fit.fit_order`'s kind, ``forces`` how the series
     applies the scenario's forces (one phrase per force).
     """
 
@@ -106,7 +106,7 @@ class ConvergenceSeries:
     settled: bool = True
 
     def fit(self, max_dt: float = math.inf) -> OrderFit | None:
-        """Fit the order from the points (:func:`~orbitsim.analysis.convergence_fit.fit_order`)."""
+        """Fit the order from the points (:func:`~orbitsim.convergence.fit.fit_order`)."""
         self.points.sort(key=lambda p: -p.dt)
         if self.adaptive:
             self.note = "adaptive: dt is only its first trial step, so it has no order in dt to fit"
@@ -208,7 +208,7 @@ def _timed(run: Callable[[], RunRecord]) -> tuple[RunRecord, float]:
 def _rung_runner(series: ConvergenceSeries, rung: Any, plan: np.ndarray, scheme: ReboundScheme | None,
                  forces: Any) -> Callable[[], RunRecord]:
     """A no-argument function that runs one rung of ``series`` (so it can be repeated for timing)."""
-    from orbitsim.analysis.compare import run_orbitsim
+    from orbitsim.compare.run import run_orbitsim
     from orbitsim.reference.sampling import run_rebound
 
     if series.engine == "orbitsim":
@@ -329,7 +329,7 @@ def run_convergence(scenario: Any, *, integrators: Sequence[str], rebound: Seque
     ValueError
         When a scheme or the REBOUND IAS15 reference cannot apply the scenario's forces.
     """
-    from orbitsim.analysis.compare import settings_for
+    from orbitsim.compare.run import settings_for
     from orbitsim.integrators.registry import get_spec
     from orbitsim.reference.force_pairing import orbitsim_refusal, rebound_refusal
     from orbitsim.reference.sampling import REFERENCE_SCHEME

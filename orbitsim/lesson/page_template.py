@@ -1,4 +1,4 @@
-"""The HTML, CSS and JavaScript of ``lesson.html`` (:mod:`orbitsim.analysis.lesson_page` fills in
+"""The HTML, CSS and JavaScript of ``lesson.html`` (:mod:`orbitsim.lesson.page` fills in
 ``__LESSON_DATA__``). Everything is inline: the page works from a file, offline, with no CDN.
 
 The script plays precomputed orbitsim runs; it integrates nothing. Its animation loop is the

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.lesson import LESSON, LessonResult
-from orbitsim.analysis.lesson_page_template import PAGE_TEMPLATE
+from orbitsim.lesson.page_template import PAGE_TEMPLATE
+from orbitsim.lesson.run import COLORS, LESSON, LessonResult
 
 __all__ = ["PAGE_DT_FACTORS", "PLAY_SECONDS", "page_data", "page_runs", "write_lesson_page"]
 
@@ -39,7 +39,7 @@ REFERENCE_POINTS = 400
 def page_runs(scenario: Any) -> dict[str, list[Any]]:
     """Every scheme of the lesson at every dt of the slider, to the lesson's end time, every step
     recorded: {integrator: [RunRecord per dt]}."""
-    from orbitsim.analysis.compare import run_orbitsim
+    from orbitsim.compare.run import run_orbitsim
     from orbitsim.scenario import resolve_steps
 
     end_time = scenario.steps * scenario.dt
@@ -63,8 +63,7 @@ def _significant(values: np.ndarray, digits: int) -> list[float]:
 
 def page_data(result: LessonResult, runs: dict[str, list[Any]]) -> dict[str, Any]:
     """The JSON the page plays: per scheme and dt, the planet's x, y and dE/E at every step."""
-    from orbitsim.analysis.lesson_output import COLORS
-    from orbitsim.analysis.plotstyle import unit_labels
+    from orbitsim.plots.style import unit_labels
 
     sc = result.scenario
     planet = int(np.argmin(sc.masses))

@@ -3,7 +3,7 @@
 Every run starts from the scenario's initial state with its G, softening and dt, and is sampled at
 the scenario's sample steps (``Scenario.sample_steps()``). orbitsim runs record positions at every
 sample; REBOUND's fixed-step runs are stepped whole steps to the same indices; the two IAS15s
-(orbitsim's and REBOUND's, :mod:`orbitsim.analysis.compare_ias15`) land exactly on the same times,
+(orbitsim's and REBOUND's, :mod:`orbitsim.compare.ias15`) land exactly on the same times,
 and the one chosen with ``reference`` is the reference. For an adaptive scenario (``integrator:
 ias15``) the samples are its output grid and fixed-dt schemes step by its ``dt`` to the step on
 each output time. See ``docs/compare.md`` for the metrics and tolerances.
@@ -11,7 +11,7 @@ each output time. See ``docs/compare.md`` for the metrics and tolerances.
 Both codes integrate the scenario's ``forces:``: REBOUND through REBOUNDx, arranged as orbitsim
 applies each force (:mod:`orbitsim.reference.force_pairing`). A pair one of whose codes cannot
 apply a force as the other does is not run against the other: its verdict is "not comparable",
-with the reason (:func:`~orbitsim.analysis.metrics.not_comparable_verdict`).
+with the reason (:func:`~orbitsim.compare.metrics.not_comparable_verdict`).
 
 The scenario is used through these attributes only: ``name``, ``G``, ``softening``, ``dt``,
 ``integrator``, ``integrator_settings``, ``masses``, ``positions``, ``velocities``, ``names``,
@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.metrics import (
+from orbitsim.compare.metrics import (
     AGREE,
     DISAGREE,
     PairVerdict,
@@ -36,7 +36,7 @@ from orbitsim.analysis.metrics import (
     reference_problem,
     run_metrics,
 )
-from orbitsim.analysis.record import RunRecord, record_from_result
+from orbitsim.record import RunRecord, record_from_result
 from orbitsim.reference.bridge import ReboundScheme, parse_rebound_scheme
 from orbitsim.reference.pairs import (
     IAS15_PAIR,
@@ -255,7 +255,7 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
     -------
     CompareResult
     """
-    from orbitsim.analysis.compare_ias15 import (
+    from orbitsim.compare.ias15 import (
         REFERENCE_CHOICES,
         fixed_step_plan,
         output_grid,
@@ -354,7 +354,7 @@ def _run_rebound(scenario: Any, scheme: ReboundScheme, plan: np.ndarray, integra
 
 
 def _announce(record: RunRecord, say: Progress) -> RunRecord:
-    from orbitsim.analysis.metrics import max_abs_energy_error
+    from orbitsim.compare.metrics import max_abs_energy_error
 
     status = "" if record.status == "complete" else f" [{record.status}: {record.message}]"
     say(f"  {record.display:<40} {record.steps_done:>9} steps  {record.wall_time_s:8.3f} s  "

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.metrics import TESTABLE_LIMIT, pair_steps, position_error, relative_position_difference
-from orbitsim.analysis.plotstyle import (
+from orbitsim.compare.metrics import TESTABLE_LIMIT, pair_steps, position_error, relative_position_difference
+from orbitsim.plots.style import (
     REFERENCE_COLOR,
     Palette,
     figure_style,
@@ -23,7 +23,7 @@ from orbitsim.analysis.plotstyle import (
     save,
     unit_labels,
 )
-from orbitsim.analysis.record import RunRecord
+from orbitsim.record import RunRecord
 from orbitsim.reference.pairs import allowed_difference
 
 #: Above this many bodies the orbit panels show final positions instead of paths.
@@ -122,7 +122,7 @@ def position_error_figure(result: Any, path: Path) -> Path:
 def pair_figure(result: Any, path: Path) -> Path | None:
     """Each matched pair's relative position difference over time, with its tolerance (pairs that
     are not comparable have no difference to draw)."""
-    from orbitsim.analysis.metrics import NOT_COMPARABLE
+    from orbitsim.compare.metrics import NOT_COMPARABLE
 
     verdicts = [v for v in result.verdicts if v.verdict != NOT_COMPARABLE]
     if not verdicts:

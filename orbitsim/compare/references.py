@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from orbitsim.analysis.compare_ias15 import escape_summary, mutual_difference
-from orbitsim.analysis.report import Table, fmt
+from orbitsim.compare.ias15 import escape_summary, mutual_difference
+from orbitsim.report import Table, fmt
 
 __all__ = ["MAX_BODIES_FINAL_STATE", "reference_rows", "references_table"]
 

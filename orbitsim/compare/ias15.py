@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.analysis.metrics import relative_position_difference
-from orbitsim.analysis.record import RunRecord, record_from_result
+from orbitsim.compare.metrics import relative_position_difference
+from orbitsim.record import RunRecord, record_from_result
 from orbitsim.reference.adaptive import IAS15_DEFAULTS
 
 __all__ = ["REFERENCE_CHOICES", "escape_summary", "fixed_step_plan", "ias15_settings", "mutual_difference",
@@ -176,7 +176,7 @@ def rebound_ias15_twin(scenario: Any, perturbation: float) -> RunRecord:
 
 def mutual_difference(a: RunRecord, b: RunRecord) -> tuple[float, float]:
     """Largest relative position difference of two runs over their shared samples, and its time
-    (scaled by ``b``'s size, as :func:`~orbitsim.analysis.metrics.relative_position_difference`)."""
+    (scaled by ``b``'s size, as :func:`~orbitsim.compare.metrics.relative_position_difference`)."""
     diff = relative_position_difference(a.positions, b.positions)
     if diff.size == 0 or not np.any(np.isfinite(diff)):
         return math.nan, math.nan
