@@ -54,7 +54,7 @@ class Scenario:
     integrator : str
         Canonical registry name.
     integrator_settings : dict
-        Settings for the integrator, checked against its module's ``SETTINGS`` schema.
+        Settings for the integrator, checked against its record's ``settings``.
     dt : float
         Fixed timestep (> 0); never shortened.
     steps : int
@@ -198,7 +198,7 @@ class Scenario:
 
     def _validate_integrator(self) -> None:
         from orbitsim.integrators.rebound_names import leapfrog_order
-        from orbitsim.integrators.registry import UnknownIntegratorError, get_module
+        from orbitsim.integrators.registry import UnknownIntegratorError, get_integrator
 
         settings = self.integrator_settings or {}
         name = self.integrator
@@ -208,20 +208,18 @@ class Scenario:
             except ValueError as err:
                 raise ScenarioError(str(err), key="integrator.order") from None
         try:
-            module = get_module(name)
+            scheme = get_integrator(name)
         except UnknownIntegratorError as err:
             raise ScenarioError(str(err), key="integrator") from None
-        self._set("integrator", module.SPEC.name)
+        self._set("integrator", scheme.spec.name)
         if not isinstance(settings, Mapping):
             raise ScenarioError(f"integrator settings must be a mapping, got {describe(settings)}",
                                 key="integrator")
-        self._set("integrator_settings", check_settings(module, dict(settings)))
-        check_bodies = getattr(module, "check_bodies", None)  # a scheme's demands on the bodies (a central mass)
-        if check_bodies is not None:
-            try:
-                check_bodies(self.masses)
-            except ValueError as err:
-                raise ScenarioError(str(err), key="bodies") from None
+        self._set("integrator_settings", check_settings(scheme, dict(settings)))
+        try:
+            scheme.check_bodies(self.masses)  # a scheme's demands on the bodies (a central mass)
+        except ValueError as err:
+            raise ScenarioError(str(err), key="bodies") from None
 
     def _validate_time(self) -> None:
         from orbitsim.scenario.time_checks import check_time
