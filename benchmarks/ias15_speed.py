@@ -33,7 +33,7 @@ rounds of the ratio within a round, as in ``orbitsim.bench.stats.paired_median``
 
 Warm-up calls (JIT compilation or cache loading, first touch, the CLI's first cache fill) come
 before the timed rounds and are excluded. The machine is shared: the load average is recorded at
-the start and the end, and the hash of ``orbitsim/integrators/ias15_core.py`` too (the CLI
+the start and the end, and the hash of ``orbitsim/integrators/ias15/core.py`` too (the CLI
 processes import the file as it is when they start).
 """
 
@@ -266,7 +266,7 @@ def wait_for_quiet(limit: float | None, timeout: float) -> None:
 
 
 def source_hash() -> str:
-    path = ROOT / "orbitsim" / "integrators" / "ias15_core.py"
+    path = ROOT / "orbitsim" / "integrators" / "ias15" / "core.py"
     return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
 
 
@@ -346,7 +346,7 @@ def main() -> None:
     result.update(machine=machine_info(2), load_average_start=load_start, load_average_end=list(os.getloadavg()),
                   ias15_core_sha256={"start": hash_start, "end": hash_end}, runtime_s=time.perf_counter() - began)
     if hash_start != hash_end:
-        print("\nnote: orbitsim/integrators/ias15_core.py changed during the run")
+        print("\nnote: orbitsim/integrators/ias15/core.py changed during the run")
     print(f"\nload average {load_start[0]:.2f} -> {result['load_average_end'][0]:.2f}; "
           f"{result['runtime_s']:.0f} s; written to {args.output}")
     args.output.parent.mkdir(parents=True, exist_ok=True)

@@ -322,8 +322,7 @@ class RunLoop:
 
     def _scheme_counters(self) -> dict[str, Any] | None:
         """An adaptive scheme's own counts so far (None for a fixed-step scheme, or before the simulation)."""
-        counters = getattr(self.sim.module, "counters", None) if self.sim is not None else None
-        return counters(self.sim.work) if counters is not None else None
+        return self.sim.scheme.counters(self.sim.work) if self.sim is not None else None
 
     def _divergence_message(self) -> str:
         if self.energy_failure is not None:

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.integrators.base import IntegratorSpec
+from orbitsim.integrators.base import Integrator, IntegratorSpec
 from orbitsim.results import SampleBuffers, SampleChunk, SimulationResult, collect_result, relative_energy_error
 from orbitsim.sampling import (
     TARGET_CALL_SECONDS,
@@ -96,7 +96,7 @@ class Simulation:
         free now, at most ``NUMBA_NUM_THREADS``: :mod:`orbitsim.cores`; :attr:`threads_choice` says
         why). Results do not depend on it.
     settings : dict
-        Integrator settings (its module's ``SETTINGS``).
+        Integrator settings (its record's ``settings``, :mod:`orbitsim.integrators.base`).
     events : EventsConfig, optional
         Watch for collisions, close encounters, escapes and unresolved steps after every step
         (:mod:`orbitsim.events`); without it the run is the plain fixed-dt loop.
@@ -133,7 +133,7 @@ class Simulation:
 
         from orbitsim._jit import set_num_threads
         from orbitsim.cores import choose_threads
-        from orbitsim.integrators.registry import get_module
+        from orbitsim.integrators.registry import get_integrator
         from orbitsim.physics.gravity import PARALLEL_MIN_N
 
         if not (math.isfinite(self.dt) and self.dt != 0.0):
@@ -142,14 +142,14 @@ class Simulation:
             raise SimulationError(f"softening must be >= 0, got {self.softening}")
         if not (math.isfinite(self.G) and self.G > 0.0):
             raise SimulationError(f"G must be > 0, got {self.G}")
-        self._module = get_module(self.integrator)
-        self.spec: IntegratorSpec = self._module.SPEC
+        self.scheme: Integrator = get_integrator(self.integrator)
+        self.spec: IntegratorSpec = self.scheme.spec
         # Without a count, one thread per core other processes leave free (orbitsim.cores).
         count, self.threads_choice = choose_threads(self.threads, numba.config.NUMBA_NUM_THREADS,
                                                     int(np.size(self.masses)) >= PARALLEL_MIN_N)
         self.threads_used = set_num_threads(count)
         self.call_undone = False  # True once a stop undid a jitted call (_call_kernels): the state is as before it
-        self._run = self._module.run
+        self._run = self.scheme.run
         if self.forces is not None:
             self._check_forces()
         self.replace_bodies(*_as_state(self.masses, self.positions, self.velocities))
@@ -171,12 +171,7 @@ class Simulation:
             why = "the forces were made for a different number of bodies"
         if why is not None:
             raise SimulationError(why)
-        self._run = forced_run(self._module)
-
-    @property
-    def module(self) -> Any:
-        """The integrator's module (its ``run``, ``run_watched``, ``step``, ``SPEC``)."""
-        return self._module
+        self._run = forced_run(self.scheme)
 
     @property
     def halted(self) -> Any:
@@ -196,14 +191,10 @@ class Simulation:
         self.m, self.pos, self.vel = (np.ascontiguousarray(a, dtype=np.float64) for a in (m, pos, vel))
         self.n = int(self.m.shape[0])
         self.force = make_force(self.G, self.softening, self.n)
-        make_work = getattr(self._module, "make_work", None)
         old_work = getattr(self, "work", None)
-        self.work = (
-            make_work(self.m, self.G, self.settings) if make_work else np.zeros((self.spec.work_slots, 3, self.n))
-        )
-        carry_over = getattr(self._module, "carry_over", None)
-        if old_work is not None and carry_over is not None:
-            carry_over(old_work, self.work)  # what the scheme keeps across a change of bodies (ias15's clock)
+        self.work = self.scheme.make_work(self.m, self.G, self.settings)
+        if old_work is not None:  # what the scheme keeps across a change of bodies (ias15's clock)
+            self.scheme.carry_over(old_work, self.work)
         self.acc = np.zeros((3, self.n))
         self.rows = potential_rows_scratch(self.n)
         G, eps2, slabs, bounds = self.force
@@ -232,9 +223,7 @@ class Simulation:
     @property
     def time(self) -> float:
         """Time of the current state: ``t0 + steps_done * dt``, or an adaptive scheme's own clock."""
-        grid = self.t0 + self.steps_done * self.dt
-        clock_time = getattr(self._module, "clock_time", None)
-        return clock_time(self.work, grid) if clock_time is not None else grid
+        return self.scheme.clock_time(self.work, self.t0 + self.steps_done * self.dt)
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Current positions and velocities as (N, 3) copies."""
@@ -361,7 +350,7 @@ class Simulation:
         run did. The scheme's own ``run`` records it without taking a step."""
         target = np.array([self.steps_done], dtype=np.int64)
         state = (self.pos, self.vel, self.acc, self.m)
-        self._module.run(state, self.force, self.dt, self.work, self.t0, self.steps_done, target,
+        self.scheme.run(state, self.force, self.dt, self.work, self.t0, self.steps_done, target,
                          np.ones(1, dtype=np.bool_), buffers.views(self.rows))
         chunk = self.watcher.expand(buffers.chunk(1))
         return self._with_elements(chunk, keep_positions) if self.elements is not None else chunk
@@ -383,8 +372,7 @@ class Simulation:
 
     def failure_detail(self) -> str | None:
         """Why the scheme failed, when it knows (e.g. wisdom_holman: which body's Kepler solve)."""
-        describe = getattr(self._module, "failure_message", None)
-        return describe(self.work) if describe is not None else None
+        return self.scheme.failure_message(self.work)
 
     def non_finite_bodies(self) -> list[int]:
         """Indices of bodies whose position or velocity is not finite."""

@@ -12,7 +12,7 @@ Everything here is written from the formulas, independently of the engine's kern
   as the engine did before its plans were produced block by block.
 
 The fourth-order weights come from Yoshida's closed form, computed here. The sixth- and
-eighth-order tables are imported from :mod:`orbitsim.integrators.composition`; their identities
+eighth-order tables are imported from :mod:`orbitsim.integrators.leapfrog`; their identities
 (sum, symmetry, order conditions) are tested on their own in ``tests/test_composition_tables.py``.
 """
 
@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from orbitsim.integrators.composition import LEAPFROG6_WEIGHTS, LEAPFROG8_WEIGHTS
+from orbitsim.integrators.leapfrog import LEAPFROG6_WEIGHTS, LEAPFROG8_WEIGHTS
 
 #: Yoshida (1990), Phys. Lett. A 150, 262: the triple jump w1 = 1 / (2 - 2^(1/3)), w0 = 1 - 2 w1.
 YOSHIDA_W1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))

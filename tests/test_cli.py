@@ -169,6 +169,23 @@ def test_list(tmp_path: Path) -> None:
     assert invoke("list", "planets")[0] == 2
 
 
+def test_list_integrators_settings_prints_each_settings_doc_and_default() -> None:
+    from orbitsim.integrators.registry import RECORDS
+
+    code, text = invoke("list", "integrators", "--settings")
+    assert code == 0 and "forces/step" not in text  # the settings, in place of the integrator table
+    rows = {tuple(line.split()[:3]) for line in text.splitlines()}
+    for record in RECORDS:
+        for key, setting in record.settings.items():
+            default = str(setting.default).lower() if isinstance(setting.default, bool) else str(setting.default)
+            assert (record.spec.name, key, default) in rows, (record.spec.name, key)
+            assert setting.doc in text, key
+    assert ("ias15", "epsilon", "1e-09") in rows and "values: 0, 3, 5, 7, 11, 17" in text
+    assert "no settings: euler, semi_implicit_euler, verlet, leapfrog, rk4" in text
+    code, text = invoke("list", "scenarios", "--settings")
+    assert code == 2 and "orbitsim list integrators --settings" in text
+
+
 def test_info_and_plot(tiny: Path, tmp_path: Path) -> None:
     out = tmp_path / "t.h5"
     invoke("run", str(tiny), "-o", str(out), "-q")

@@ -1,4 +1,4 @@
-"""Identities of the composition coefficient tables in :mod:`orbitsim.integrators.composition`.
+"""Identities of the composition coefficient tables in :mod:`orbitsim.integrators.leapfrog`.
 
 A symmetric composition of the (symmetric, second-order) DKD leapfrog with weights w_1..w_s is
 consistent when sum w = 1, symmetric when the weights are a palindrome, and of order p only if the
@@ -13,11 +13,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from orbitsim.integrators import composition, leapfrog, leapfrog4, leapfrog6, leapfrog8
-from orbitsim.integrators.composition import (
+from orbitsim.integrators import leapfrog
+from orbitsim.integrators.leapfrog import (
+    LEAPFROG,
     LEAPFROG2_WEIGHTS,
+    LEAPFROG4,
     LEAPFROG4_WEIGHTS,
+    LEAPFROG6,
     LEAPFROG6_WEIGHTS,
+    LEAPFROG8,
     LEAPFROG8_WEIGHTS,
     drift_coefficients,
 )
@@ -85,17 +89,29 @@ def test_leapfrog4_is_yoshidas_triple_jump() -> None:
     assert abs(np.sum(LEAPFROG4_WEIGHTS**3)) < TABLE_TOL
 
 
-def test_modules_use_the_tables() -> None:
-    for module, weights in (
-        (leapfrog, LEAPFROG2_WEIGHTS),
-        (leapfrog4, LEAPFROG4_WEIGHTS),
-        (leapfrog6, LEAPFROG6_WEIGHTS),
-        (leapfrog8, LEAPFROG8_WEIGHTS),
+def test_records_use_the_tables() -> None:
+    for record, weights in (
+        (LEAPFROG, LEAPFROG2_WEIGHTS),
+        (LEAPFROG4, LEAPFROG4_WEIGHTS),
+        (LEAPFROG6, LEAPFROG6_WEIGHTS),
+        (LEAPFROG8, LEAPFROG8_WEIGHTS),
     ):
-        assert np.array_equal(module.KICKS, weights), module.__name__
-        assert np.array_equal(module.DRIFTS, drift_coefficients(weights)), module.__name__
-        assert module.SPEC.force_evals == weights.shape[0], module.__name__
-    assert composition.palindrome((1.0, 2.0, 3.0)).tolist() == [1.0, 2.0, 3.0, 2.0, 1.0]
+        assert np.array_equal(record.kicks, weights), record.spec.name
+        assert np.array_equal(record.drifts, drift_coefficients(weights)), record.spec.name
+        assert record.spec.force_evals == weights.shape[0], record.spec.name
+    assert leapfrog.palindrome((1.0, 2.0, 3.0)).tolist() == [1.0, 2.0, 3.0, 2.0, 1.0]
+
+
+def test_order_table_is_rebounds_leapfrog_order() -> None:
+    """One leapfrog, four orders: the record of each order declares it, and REBOUND's ``order`` setting
+    (:data:`orbitsim.integrators.rebound_names.LEAPFROG_ORDERS`) names the same records."""
+    from orbitsim.integrators.rebound_names import LEAPFROG_ORDERS
+    from orbitsim.integrators.registry import get_integrator
+
+    assert sorted(leapfrog.ORDERS) == [2, 4, 6, 8]
+    for order, record in leapfrog.ORDERS.items():
+        assert record.spec.order == order
+        assert get_integrator(LEAPFROG_ORDERS[order]) is record
 
 
 def _composed_oscillator_map(weights: np.ndarray, h: float) -> np.ndarray:

@@ -19,7 +19,7 @@ from orbitsim.batch.sweep import SweepError, load_sweep
 from orbitsim.cli.main import cli
 from orbitsim.forces.compat import FORCE_INTEGRATORS, check_integrator
 from orbitsim.forces.table import GR_POTENTIAL, HARMONICS, MIGRATION, P_C, P_J2, P_J4, P_R_EQ, P_SPIN
-from orbitsim.integrators.registry import MODULE_NAMES
+from orbitsim.integrators.registry import NAMES
 from orbitsim.scenario import ScenarioError, load_scenario, scenario_from_dict
 from orbitsim.scenario.forces import SPEED_OF_LIGHT, default_c, force_set
 from orbitsim.scenario.yamlio import parse_yaml
@@ -124,8 +124,8 @@ def test_speed_of_light_defaults_follow_the_iau_definitions() -> None:
 
 def test_compatibility_table_names_real_integrators_and_refuses_trace() -> None:
     for name, integrators in FORCE_INTEGRATORS.items():
-        assert set(integrators) <= set(MODULE_NAMES) and "trace" not in integrators, name
-        for integrator in MODULE_NAMES:
+        assert set(integrators) <= set(NAMES) and "trace" not in integrators, name
+        for integrator in NAMES:
             refusal = check_integrator([name], integrator)
             assert (refusal is None) == (integrator in integrators)
             if refusal is not None:

@@ -215,7 +215,7 @@ def test_ias15_velocity_dependent_force_predicts_node_velocities() -> None:
 
 def test_runs_without_forces_keep_their_plain_loop() -> None:
     sim, _ = _run("verlet", None, 10)
-    assert sim._run is sim.module.run and sim.step_force is sim.force and len(sim.force) == 4
+    assert sim._run is sim.scheme.run and sim.step_force is sim.force and len(sim.force) == 4
 
 
 @pytest.mark.parametrize(("integrator", "kwargs", "words"), [

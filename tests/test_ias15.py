@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import rebound
 
-from orbitsim.integrators import ias15_tables
 from orbitsim.integrators.ias15 import counters
+from orbitsim.integrators.ias15 import tables as ias15_tables
 from orbitsim.integrators.registry import get_spec
 from orbitsim.runner import run_scenario
 from orbitsim.sampling import EveryPlan

@@ -6,22 +6,27 @@ checked without editing this file. Scheme-specific physics lives in the other te
 
 from __future__ import annotations
 
+import importlib
 import math
+import re
 import subprocess
 import sys
+from dataclasses import fields
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from orbitsim.bench.systems import planets
-from orbitsim.integrators.base import IntegratorSpec
+from orbitsim.integrators.base import Integrator, IntegratorSpec, Setting
 from orbitsim.integrators.registry import (
     INTEGRATORS,
-    MODULE_NAMES,
-    MODULES,
+    NAMES,
+    RECORDS,
+    SCHEMES,
     UnknownIntegratorError,
     canonical_name,
-    get_module,
+    get_integrator,
     get_spec,
     valid_names,
 )
@@ -52,10 +57,10 @@ def star_and_two_planets() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def test_registry_is_not_empty_and_consistent() -> None:
-    assert len(INTEGRATORS) == len(MODULES) >= len(DECLARED_ORDERS)
-    for module, spec in zip(MODULES, INTEGRATORS, strict=True):
-        assert module.SPEC is spec
-        assert spec.module == module.__name__
+    assert len(INTEGRATORS) == len(RECORDS) >= len(DECLARED_ORDERS)
+    for record, spec in zip(RECORDS, INTEGRATORS, strict=True):
+        assert record.spec is spec
+        assert getattr(importlib.import_module(spec.module), spec.name.upper()) is record
 
 
 @pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
@@ -92,12 +97,77 @@ def test_documented_spellings() -> None:
 
 
 @pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
-def test_every_module_has_step_run_and_run_watched(spec: IntegratorSpec) -> None:
+def test_every_record_has_step_run_and_run_watched(spec: IntegratorSpec) -> None:
     """``run_watched`` is what a run with ``events:`` calls (orbitsim.events.kernels)."""
-    module = get_module(spec.name)
-    assert callable(module.step)
-    assert callable(module.run)
-    assert callable(module.run_watched)
+    record = get_integrator(spec.name)
+    assert callable(record.step)
+    assert callable(record.run)
+    assert callable(record.run_watched)
+
+
+#: Every hook of the record (orbitsim.integrators.base's numbered contract) that is a function.
+HOOKS = ("step", "run", "run_watched", "validate_settings", "make_work", "carry_over", "check_bodies", "clock_time",
+         "failure_message", "counters", "take_merges", "handoff")
+
+
+def test_the_record_declares_every_hook() -> None:
+    """The record's fields are the contract: the hooks, the settings, the run constants and the tables."""
+    declared = {f.name for f in fields(Integrator)}
+    assert declared == {"spec", *HOOKS, "settings", "run_constants", "kicks", "drifts"}
+
+
+@pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
+def test_every_scheme_fits_the_record(spec: IntegratorSpec) -> None:
+    """Every registered scheme is a record whose hooks all answer on a fresh work, with one settings shape:
+    a doc string per setting, defaults that its own validation returns unchanged, and choices it accepts."""
+    record = get_integrator(spec.name)
+    assert isinstance(record, Integrator) and record.spec is spec
+    for hook in HOOKS:
+        assert callable(getattr(record, hook)), hook
+    for key, setting in record.settings.items():
+        assert isinstance(setting, Setting) and key == key.strip().lower(), key
+        assert len(setting.doc) > 20 and "\n" not in setting.doc, key
+        if setting.choices:
+            assert setting.default in setting.choices, key
+            for choice in setting.choices:
+                assert record.validate_settings({key: choice})[key] == choice, (key, choice)
+    assert record.validate_settings({}) == record.default_settings()
+    assert record.validate_settings({"name": spec.name}) == record.default_settings()
+    with pytest.raises(ValueError, match="no_such_setting"):
+        record.validate_settings({"no_such_setting": 1})
+    m, _, _ = star_and_two_planets()
+    record.check_bodies(m)
+    work = record.make_work(m, 1.0, {})
+    fresh = record.make_work(m, 1.0, record.default_settings())
+    record.carry_over(work, fresh)
+    assert record.clock_time(work, 0.25) == 0.25  # nothing stepped: the grid's time
+    assert record.failure_message(work) is None
+    counters = record.counters(work)
+    assert counters is None or (counters and all(value == 0 for key, value in counters.items() if key != "dt_next"))
+    merges = record.take_merges(work)
+    assert merges is None or len(merges[0]) == 0
+    handoff = record.handoff(work)
+    assert handoff is None or len(handoff) == 3
+    for index in record.run_constants:
+        assert isinstance(work, tuple) and 0 <= index < len(work)
+    assert (record.kicks is None) == (record.drifts is None)
+    if record.kicks is not None:
+        assert record.kicks.shape[0] == spec.force_evals and record.drifts.shape[0] == spec.force_evals + 1
+
+
+#: ``getattr``/``hasattr`` of one of the hooks the record declares (what callers did before it existed).
+_HOOK_LOOKUP = re.compile(r"\b(getattr|hasattr)\([^)]*[\"'](make_work|carry_over|clock_time|failure_message|counters|"
+                          r"take_merges|check_bodies|handoff|SETTINGS|validate_settings|RUN_CONSTANTS|KICKS|DRIFTS)[\"']")
+
+
+def test_no_caller_looks_a_hook_up_by_name() -> None:
+    """Callers use the record's declared hooks, never an optional attribute of a module."""
+    package = Path(importlib.import_module("orbitsim").__file__).parent
+    found = [f"{path.relative_to(package)}:{number}" for path in sorted(package.rglob("*.py"))
+             for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+             if _HOOK_LOOKUP.search(line)]
+    assert found == []
+    assert _HOOK_LOOKUP.search('counters = getattr(self.sim.module, "counters", None)')  # the check can fail
 
 
 @pytest.mark.parametrize("n", [3, 60])  # both force paths: all pairs (N <= 48) and the third-law rows
@@ -108,9 +178,9 @@ def test_step_gives_the_same_bits_as_run(spec: IntegratorSpec, n: int) -> None:
     m, x, v = planets(n, seed=4)
     steps, dt = 7, 1e-3
     stepped = Simulation(m, x, v, spec.name, dt)
-    module = get_module(spec.name)
+    record = get_integrator(spec.name)
     for _ in range(steps):
-        module.step(stepped.pos, stepped.vel, stepped.acc, stepped.m, stepped.force, dt, stepped.work)
+        record.step(stepped.pos, stepped.vel, stepped.acc, stepped.m, stepped.force, dt, stepped.work)
     ran = Simulation(m, x, v, spec.name, dt)
     (chunk,) = ran.chunks(np.array([steps]))
     assert chunk.step.tolist() == [steps]
@@ -120,17 +190,17 @@ def test_step_gives_the_same_bits_as_run(spec: IntegratorSpec, n: int) -> None:
 
 
 def test_module_names_are_the_spec_names() -> None:
-    """A scheme's own name is looked up by importing the module of that name."""
-    assert [module.SPEC.name for module in MODULES] == list(MODULE_NAMES)
-    assert [module.__name__.rsplit(".", 1)[-1] for module in MODULES] == list(MODULE_NAMES)
+    """A scheme's own name is looked up by importing the module :data:`SCHEMES` names for it."""
+    assert [record.spec.name for record in RECORDS] == list(NAMES)
+    assert [record.spec.module.rsplit(".", 1)[-1] for record in RECORDS] == [module for _, module in SCHEMES]
 
 
 def test_looking_up_a_scheme_by_name_imports_only_that_scheme() -> None:
     """A run's start-up imports the scheme it runs, not the other eight (about 50 ms)."""
     code = (
-        "import sys; from orbitsim.integrators.registry import MODULE_NAMES, get_module; "
-        "assert get_module('Verlet').SPEC.name == 'verlet'; "
-        "print(sorted(n for n in MODULE_NAMES if 'orbitsim.integrators.' + n in sys.modules))"
+        "import sys; from orbitsim.integrators.registry import SCHEMES, get_integrator; "
+        "assert get_integrator('Verlet').spec.name == 'verlet'; "
+        "print(sorted({m for _, m in SCHEMES if 'orbitsim.integrators.' + m in sys.modules}))"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.split() == ["['verlet']"]
@@ -139,7 +209,7 @@ def test_looking_up_a_scheme_by_name_imports_only_that_scheme() -> None:
 @pytest.mark.parametrize("bad", ["no_such_scheme", "verlet2", "", "leap frog"])
 def test_unknown_name_lists_every_valid_name(bad: str) -> None:
     with pytest.raises(UnknownIntegratorError) as info:
-        get_module(bad)
+        get_integrator(bad)
     assert isinstance(info.value, ValueError)
     message = str(info.value)
     for spec in INTEGRATORS:
@@ -149,7 +219,7 @@ def test_unknown_name_lists_every_valid_name(bad: str) -> None:
 
 def test_non_string_name_is_an_unknown_integrator() -> None:
     with pytest.raises(UnknownIntegratorError):
-        get_module(None)  # type: ignore[arg-type]
+        get_integrator(None)  # type: ignore[arg-type]
 
 
 # -- REBOUND's names and the nearest name (issue 27, item 14) --------------------------------------------------
@@ -159,7 +229,7 @@ def test_non_string_name_is_an_unknown_integrator() -> None:
                                               ("verlett", "verlet"), ("whfats", "whfast")])
 def test_an_unknown_name_suggests_the_nearest_one(bad: str, nearest: str) -> None:
     with pytest.raises(UnknownIntegratorError, match=f"^unknown integrator {bad!r}; did you mean {nearest!r}\\?"):
-        get_module(bad)
+        get_integrator(bad)
 
 
 @pytest.mark.parametrize("name", ["whfast", "WHFast", " whfast "])
@@ -200,7 +270,7 @@ def test_ias15_and_trace_are_the_same_names_with_the_same_settings(name: str) ->
 
     rebound_keys = {"ias15": {"epsilon", "min_dt"}, "trace": {"r_crit_hill", "peri_crit_eta", "peri_mode"}}[name]
     assert get_spec(name).name == name and name not in SAME_SCHEME and name not in CLOSEST
-    assert rebound_keys <= set(get_module(name).SETTINGS)
+    assert rebound_keys <= set(get_integrator(name).settings)
 
 
 def test_rebound_schemes_orbitsim_lacks_name_the_closest_one() -> None:
@@ -210,12 +280,12 @@ def test_rebound_schemes_orbitsim_lacks_name_the_closest_one() -> None:
 
     for rebound_name in [*CLOSEST, "saba1", "SABA(10,6,4)", "sabacm"]:
         with pytest.raises(UnknownIntegratorError) as info:
-            get_module(rebound_name)
+            get_integrator(rebound_name)
         message = str(info.value)
         assert "\n" not in message and "REBOUND's" in message, message
         if rebound_name not in ("sei", "none"):
             suggested = message.split("is not in orbitsim; ", 1)[1]
-            assert any(name in suggested for name in MODULE_NAMES), message
+            assert any(name in suggested for name in NAMES), message
 
 
 def test_the_rebound_names_are_rebounds() -> None:

@@ -1,4 +1,4 @@
-"""orbitsim's TRACE kernels (:mod:`orbitsim.integrators.trace_core`) against REBOUND's TRACE.
+"""orbitsim's TRACE kernels (:mod:`orbitsim.integrators.trace.core`) against REBOUND's TRACE.
 
 Both run in this process from the same initial state (read from a ``rebound.Simulation``, set up
 as REBOUND's own ``test_trace.py`` does), to the same end time with REBOUND's exact finish (whole
@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from orbitsim.integrators.trace_core import active_count, advance, counts_of, make_work
+from orbitsim.integrators.trace.core import active_count, advance, counts_of, make_work
 
 rebound = pytest.importorskip("rebound")
 

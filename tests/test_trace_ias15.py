@@ -1,4 +1,4 @@
-"""TRACE's FULL_IAS15 pericentre step (:mod:`orbitsim.integrators.trace_ias15`) against REBOUND 5.2.2.
+"""TRACE's FULL_IAS15 pericentre step (:mod:`orbitsim.integrators.trace.ias15`) against REBOUND 5.2.2.
 
 REBOUND's FULL_IAS15 branch (``integrator_trace.c`` 1030-1052) is not reachable on its own from
 Python, so most tests emulate it with REBOUND's plain IAS15 (:func:`rebound_full_ias15`): a new
@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from orbitsim.integrators.ias15_core import (
+from orbitsim.integrators.ias15.core import (
     CLOCK_DT_LAST_DONE,
     CLOCK_T,
     COUNT_ACCEPTED,
@@ -24,14 +24,14 @@ from orbitsim.integrators.ias15_core import (
     W_CLOCK,
     W_COUNTS,
 )
-from orbitsim.integrators.trace_ias15 import (
+from orbitsim.integrators.trace.ias15 import (
     STATUS_NON_FINITE,
     STATUS_OK,
     STATUS_STEP_UNDERFLOW,
     full_ias15_step,
     make_full_ias15_work,
 )
-from orbitsim.integrators.trace_operators import dh_to_inertial, inertial_to_dh
+from orbitsim.integrators.trace.operators import dh_to_inertial, inertial_to_dh
 
 rebound = pytest.importorskip("rebound")
 
@@ -305,8 +305,8 @@ def test_the_work_made_inside_a_step_is_ias15s_own_layout_and_settings() -> None
     """new_full_ias15_work (jitted, made by each pericentre step) mirrors ias15.make_work: the same
     fields, shapes, dtypes and zeros, and FULL_IAS15_SETTINGS."""
     from orbitsim.integrators.ias15 import make_work
-    from orbitsim.integrators.ias15_core import WORK_FIELDS
-    from orbitsim.integrators.trace_ias15 import FULL_IAS15_SETTINGS
+    from orbitsim.integrators.ias15.core import WORK_FIELDS
+    from orbitsim.integrators.trace.ias15 import FULL_IAS15_SETTINGS
 
     theirs = make_work(np.zeros(5), 1.0, FULL_IAS15_SETTINGS)
     mine = make_full_ias15_work(5)

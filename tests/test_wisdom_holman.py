@@ -15,9 +15,9 @@ import rebound
 from orbitsim.initial_conditions.elements import elements_to_cartesian
 from orbitsim.initial_conditions.ephemeris import J2000_JD, de421_states
 from orbitsim.integrators import wisdom_holman
-from orbitsim.integrators.registry import get_module
-from orbitsim.integrators.wh_correctors import CORRECTOR_A1, CORRECTOR_STAGES, apply_corrector
-from orbitsim.integrators.wh_operators import W_WEIGHTS
+from orbitsim.integrators.registry import get_integrator
+from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_A1, CORRECTOR_STAGES, apply_corrector
+from orbitsim.integrators.wisdom_holman.operators import W_WEIGHTS
 from orbitsim.physics.coordinates import inertial_to_jacobi
 from orbitsim.reference.wh_pairing import configure_rebound_whfast
 from orbitsim.simulation import Simulation, simulate
@@ -68,8 +68,8 @@ def max_relative(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def test_registered_under_its_name_and_alias() -> None:
-    assert get_module("wh") is wisdom_holman
-    assert get_module("Wisdom-Holman") is wisdom_holman
+    assert get_integrator("wh") is wisdom_holman.WISDOM_HOLMAN
+    assert get_integrator("Wisdom-Holman") is wisdom_holman.WISDOM_HOLMAN
     assert wisdom_holman.SPEC.order == 2 and wisdom_holman.SPEC.symplectic
 
 

@@ -39,9 +39,9 @@ def _jit_counts(dispatcher: Any) -> tuple[int, int]:
 def jit_timed(integrator: str, call: Callable[[], None]) -> tuple[float, str]:
     """The seconds ``call()`` takes and how the integrator's jitted ``run`` was made ready in it:
     ``compiled``, loaded from the ``cache``, or already ``in-memory``."""
-    from orbitsim.integrators.registry import get_module
+    from orbitsim.integrators.registry import get_integrator
 
-    run = get_module(integrator).run
+    run = get_integrator(integrator).run
     before = _jit_counts(run)
     start = time.perf_counter()
     call()

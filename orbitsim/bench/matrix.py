@@ -84,7 +84,7 @@ __all__ = [
 KINDS = ("steps", "kernels", "startup", "sampling", "memory", "adaptive", "trace")
 
 #: REBOUND schemes and their force evaluations per step: leapfrog of order 2k composes
-#: 1, 3, 9, 17 substeps (the tables in :mod:`orbitsim.integrators.composition`); WHFast uses one.
+#: 1, 3, 9, 17 substeps (the tables in :mod:`orbitsim.integrators.leapfrog`); WHFast uses one.
 REBOUND_INTEGRATORS: dict[str, int] = {
     "leapfrog": 1, "leapfrog:4": 3, "leapfrog:6": 9, "leapfrog:8": 17, "whfast": 1, "trace": 1,
 }

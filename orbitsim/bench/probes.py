@@ -34,7 +34,10 @@ from orbitsim.bench.stats import paired_median, summarise
 __all__ = ["cached_functions", "run_memory", "run_sampling", "run_startup"]
 
 #: Integrator modules whose functions every scheme may compile (helpers, not schemes).
-SHARED_INTEGRATOR_MODULES = ("base", "composition", "registry")
+SHARED_INTEGRATOR_MODULES = ("base", "registry")
+#: Numba's cache folders of the package's top-level kernel folders (``integrators_<hash>``, ...); any
+#: other folder is a subpackage, an integrator family (``ias15_<hash>``, ``trace_<hash>``).
+_TOP_FOLDERS = ("orbitsim", "physics", "integrators", "events", "forces")
 
 
 def _orbitsim_command() -> list[str]:
@@ -90,21 +93,25 @@ def _timed(cmd: list[str], env: dict[str, str]) -> tuple[float, float]:
 
 
 def cached_functions(cache_dir: Path) -> list[str]:
-    """``module.function`` for every index file Numba wrote under ``cache_dir``, sorted."""
+    """``module.function`` for every index file Numba wrote under ``cache_dir``, sorted; a function of
+    an integrator family's package is ``family/module.function`` (``ias15/core.step_try``)."""
     names = set()
     for index in cache_dir.rglob("*.nbi"):
         stem = index.name.split(".py")[0]  # e.g. "verlet.run-43"
-        names.add(stem.rsplit("-", 1)[0])
+        folder = index.parent.name.rsplit("_", 1)[0]  # Numba's "<folder>_<hash of its path>"
+        prefix = "" if folder in _TOP_FOLDERS else f"{folder}/"
+        names.add(prefix + stem.rsplit("-", 1)[0])
     return sorted(names)
 
 
 def _foreign_integrators(functions: list[str], integrator: str) -> list[str]:
-    """Functions of integrator modules other than the one used (and the shared helpers)."""
-    from orbitsim.integrators.registry import MODULES, get_spec
+    """Functions of integrator modules other than the one used (and the shared helpers). A scheme
+    that reuses another family's kernels (trace's full_ias15 step, the ias15 core) lists those too."""
+    from orbitsim.integrators.registry import INTEGRATORS, get_spec
 
     used = get_spec(integrator).module.rsplit(".", 1)[-1]
-    schemes = {module.__name__.rsplit(".", 1)[-1] for module in MODULES} - {used}
-    return [f for f in functions if f.split(".", 1)[0] in schemes]
+    schemes = {spec.module.rsplit(".", 1)[-1] for spec in INTEGRATORS} - {used}
+    return [f for f in functions if f.split("/", 1)[0].split(".", 1)[0] in schemes]
 
 
 def run_startup(group: Group) -> dict[str, Any]:

@@ -55,9 +55,8 @@ def restore_state(sim: Simulation, state: SimState) -> None:
             raise CheckpointError(f"checkpoint {name} has shape {saved.shape}, the run needs {have.shape}")
     arrays = iter(state.work)
     # Constants the run itself sets (ias15's t_end, which `run --from` moves): the new run's value stays.
-    run_constants = getattr(sim._module, "RUN_CONSTANTS", ())
     try:
-        _restore(sim.work, json.loads(state.work_layout), arrays, run_constants)
+        _restore(sim.work, json.loads(state.work_layout), arrays, sim.scheme.run_constants)
     except StopIteration:
         raise CheckpointError("checkpoint holds fewer work arrays than the integrator keeps") from None
     if next(arrays, None) is not None:

@@ -9,20 +9,27 @@ from orbitsim.cli.errors import one_line, reports_errors
 
 @click.command("list")
 @click.argument("what", type=click.Choice(["integrators", "scenarios"]), required=False)
+@click.option("--settings", "settings", is_flag=True,
+              help="List each integrator's settings (integrator: {name: ..., KEY: VALUE}): default and meaning. "
+                   "Example: orbitsim list integrators --settings")
 @reports_errors
-def command(what: str | None) -> None:
+def command(what: str | None, settings: bool) -> None:
     """List integrators (order, symplecticity) or bundled scenarios (N, integrator, description).
 
     With no argument, lists both. Bundled scenarios run by name: `orbitsim run NAME`.
+    With --settings, the integrators' settings instead of the integrator table.
 
     \b
     Examples:
       orbitsim list
       orbitsim list integrators
+      orbitsim list integrators --settings
       orbitsim list scenarios
     """
+    if settings and what == "scenarios":
+        raise click.UsageError("--settings lists the integrators' settings: orbitsim list integrators --settings")
     if what in (None, "integrators"):
-        _integrators()
+        _settings() if settings else _integrators()
     if what is None:
         click.echo()
     if what in (None, "scenarios"):
@@ -37,6 +44,27 @@ def _integrators() -> None:
              f"{s.summary} [{s.reference}]") for s in INTEGRATORS]
     _table(("integrator", "aliases", "order", "step", "symplectic", "reversible", "forces/step",
             "summary [reference]"), rows)
+
+
+def _settings() -> None:
+    """One row per setting of every integrator that has any: its default, its doc and its values."""
+    from orbitsim.integrators.rebound_names import LEAPFROG_ORDERS
+    from orbitsim.integrators.registry import RECORDS
+
+    rows = [(record.spec.name, key, _yaml_value(setting.default),
+             setting.doc + (f"; values: {', '.join(map(_yaml_value, setting.choices))}" if setting.choices else ""))
+            for record in RECORDS for key, setting in record.settings.items()]
+    _table(("integrator", "setting", "default", "meaning"), rows)
+    without = [record.spec.name for record in RECORDS if not record.settings]
+    if without:
+        click.echo(f"no settings: {', '.join(without)}")
+    orders = ", ".join(f"{order}: {name}" for order, name in LEAPFROG_ORDERS.items())
+    click.echo(f"REBOUND's leapfrog order is a name here: {{name: leapfrog, order: 4}} is leapfrog4 ({orders})")
+
+
+def _yaml_value(value: object) -> str:
+    """A setting's value as a scenario writes it (``true``, not ``True``)."""
+    return str(value).lower() if isinstance(value, bool) else str(value)
 
 
 def _scenarios() -> None:

@@ -121,7 +121,7 @@ def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) 
     parts = list(sim.chunks(points, record_positions=True))
     wall = time.perf_counter() - start
     result = collect_result(sim, parts, True, wall)
-    counters = sim.module.counters(sim.work)
+    counters = sim.scheme.counters(sim.work)
     record = record_from_result(result, key="orbitsim_ias15", order=None,
                                 display=f"orbitsim ias15 (epsilon {settings['epsilon']:g})",
                                 options={**run_settings, "exact_finish_time": 1})

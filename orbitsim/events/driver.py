@@ -100,7 +100,7 @@ class Watcher:
         self.halted: Event | None = None
         # the scheme and its settings (defaults filled in), which word an unresolved step's fix
         self.scheme = sim.spec.name
-        self.settings = {**getattr(sim.module, "SETTINGS", {}), **sim.settings}
+        self.settings = {**sim.scheme.default_settings(), **sim.settings}
         self.watch = build_watch(config, sim.m, self.radii, sim.G)
         self._handoff: tuple[np.ndarray, np.ndarray, int] | None = None  # of a step whose merges are taken out
         self._kept = np.arange(n)
@@ -162,7 +162,7 @@ class Watcher:
              ) -> tuple[int, int, bool, bool]:
         """One jitted call of the scheme's ``run_watched``; ``(written, n_done, finite, acted)``."""
         state = (sim.pos, sim.vel, sim.acc, sim.m)
-        written, n_done, finite, acted = sim.module.run_watched(
+        written, n_done, finite, acted = sim.scheme.run_watched(
             state, sim.force, sim.dt, sim.work, sim.t0, sim.steps_done, targets, record, out, self.watch)
         return int(written), int(n_done), bool(finite), bool(acted)
 
@@ -197,7 +197,7 @@ class Watcher:
         events, self.watch = drain(self.watch, self.alive)
         stop = int(self.watch[9][wl.STOP]) if acted else wl.STOP_NONE
         self.watch[9][wl.STOP] = wl.STOP_NONE
-        if stop == wl.STOP_RESOLVE and hasattr(sim.module, "take_merges"):
+        if stop == wl.STOP_RESOLVE:
             merged = self._take_in_step_merges(sim)
             if merged:
                 # The step's own checks were left for now: they run on the bodies that are left.
@@ -257,21 +257,22 @@ class Watcher:
 
     def _take_in_step_merges(self, sim: WatchedRun) -> list[Event]:
         """Take out the bodies the integrator merged inside the last step (TRACE's encounters,
-        :func:`orbitsim.integrators.trace.take_merges`); return their events.
+        :func:`orbitsim.integrators.trace.take_merges`); return their events (none for a scheme
+        that merges nothing inside its steps).
 
         The integrator has merged them already, each into the lower index, leaving a massless
         husk, and measured the energy each merge took out at the moment it happened.
         """
-        rows, radii = sim.module.take_merges(sim.work)
-        if len(rows) == 0:
+        taken = sim.scheme.take_merges(sim.work)
+        if taken is None or len(taken[0]) == 0:
             return []
-        from orbitsim.integrators.trace_collide import H_DIST, H_ENERGY, H_KEEP, H_LOSE, H_REACH, H_SPEED, H_TIME
+        rows, radii = taken
+        from orbitsim.integrators.trace.collide import H_DIST, H_ENERGY, H_KEEP, H_LOSE, H_REACH, H_SPEED, H_TIME
 
         step = sim.steps_done
         gone = np.zeros(len(sim.m), dtype=bool)
         into = np.arange(len(sim.m))
-        handoff = getattr(sim.module, "handoff", None)
-        self._handoff = handoff(sim.work) if handoff is not None else None  # the step's, for _check_step
+        self._handoff = sim.scheme.handoff(sim.work)  # the step's, for _check_step
         for row in rows:
             keep, lose = int(row[H_KEEP]), int(row[H_LOSE])
             gone[lose], into[lose] = True, keep

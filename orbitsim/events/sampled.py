@@ -65,7 +65,7 @@ class StepCheck:
         self.names = list(names)
         self.dt = abs(float(sim.dt))
         self.scheme = sim.spec.name
-        self.settings = {**getattr(sim.module, "SETTINGS", {}), **sim.settings}
+        self.settings = {**sim.scheme.default_settings(), **sim.settings}
         self.first_step = sim.steps_done
         self.pairs_examined = 0
         self.warning = ""

@@ -27,14 +27,13 @@ calls (chunks, checkpoints) the bits are the same.
 from __future__ import annotations
 
 from collections.abc import Callable
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.kernels import add_position_forces, add_velocity_forces, velocity_operator
-from orbitsim.integrators.base import drift, kick, kick_drift, record_sample
+from orbitsim.integrators.base import Integrator, drift, kick, kick_drift, record_sample
 from orbitsim.integrators.ias15 import run as ias15_run
 from orbitsim.integrators.rk4 import B_WEIGHTS, C_NODES, _stage
 from orbitsim.integrators.wisdom_holman import run as wh_run
@@ -50,7 +49,7 @@ _NO_TABLE = np.zeros(0)
 @jit_inline
 def _accelerations(pos, vel, m, force, acc, with_velocity):
     """acc = gravity + position-only forces at ``pos`` (+ velocity-dependent ones at (pos, vel)).
-    The same arithmetic as IAS15's end of step with its hooks (ias15_core.step_try)."""
+    The same arithmetic as IAS15's end of step with its hooks (orbitsim.integrators.ias15.core.step_try)."""
     G = force[0]
     ids, source, params, per_body, scratch = force[4][0], force[4][1], force[4][2], force[4][3], force[4][4]
     if pos.shape[1] <= SMALL_N_MAX:
@@ -186,15 +185,15 @@ def run_ias15(state, force, dt, work, t0, n_done, targets, record, out):
     return ias15_run(state, force, dt, work, t0, n_done, targets, record, out)
 
 
-def forced_run(module: ModuleType) -> Callable[..., Any]:
-    """The forced ``run`` for an integrator module (its ``SPEC.name`` decides); raises ValueError
-    for one that cannot take forces (trace)."""
-    name = module.SPEC.name
+def forced_run(record: Integrator) -> Callable[..., Any]:
+    """The forced ``run`` for an integrator's record (its name decides, and a composition's tables);
+    raises ValueError for one that cannot take forces (trace)."""
+    name = record.spec.name
     if name in _FIXED:
         scheme = _FIXED[name]
         return lambda *args: run_fixed(*args, scheme, _NO_TABLE, _NO_TABLE)
-    if hasattr(module, "KICKS") and hasattr(module, "DRIFTS"):
-        drifts, kicks = module.DRIFTS, module.KICKS
+    if record.kicks is not None and record.drifts is not None:
+        drifts, kicks = record.drifts, record.kicks
         return lambda *args: run_fixed(*args, DKD, drifts, kicks)
     if name == "wisdom_holman":
         return lambda *args: (run_wh_operator if args[1][4][6] else wh_run)(*args)

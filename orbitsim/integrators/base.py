@@ -1,14 +1,17 @@
-"""The contract every integrator implements, and the jitted pieces they share.
+"""The integrator record every scheme declares, and the jitted pieces the schemes share.
 
-An integrator module provides, beside the math:
+Each scheme is one :class:`Integrator` record (``VERLET``, ``IAS15``, ...; the registry,
+:mod:`orbitsim.integrators.registry`, lists them), with every hook the engine calls declared in
+it and a default where a scheme has nothing to say. Callers use the record's fields, never
+``getattr`` on a module. In order:
 
-1. ``SPEC``: an :class:`IntegratorSpec` (name, aliases, order, symplecticity, reversibility, force
+1. ``spec``: an :class:`IntegratorSpec` (name, aliases, order, symplecticity, reversibility, force
    evaluations per step, scratch slots, citation).
 2. ``step(pos, vel, acc, m, force, dt, work)``: one whole step of size ``dt``, in place.
    ``pos``, ``vel``, ``acc`` are ``(3, N)``; ``m`` is ``(N,)``; ``force`` is the context from
-   :func:`orbitsim.physics.gravity.make_force`; ``work`` is ``(SPEC.work_slots, 3, N)`` scratch.
+   :func:`orbitsim.physics.gravity.make_force`; ``work`` is what ``make_work`` made.
    On entry ``acc`` holds the accelerations at ``pos``; on exit it holds those at the new ``pos``
-   when ``SPEC.fsal`` is true (first-same-as-last: kick-drift-kick schemes reuse the last force
+   when ``spec.fsal`` is true (first-same-as-last: kick-drift-kick schemes reuse the last force
    evaluation), otherwise whatever the scheme last evaluated. Steps call gravity as a module
    global, never as an argument, so they hit Numba's on-disk cache.
 3. ``run(state, force, dt, work, t0, n_done, targets, record, out)``: the fixed-dt loop. For each
@@ -16,8 +19,33 @@ An integrator module provides, beside the math:
    writes a sample with :func:`record_sample`. Returns ``(samples_written, n_done, finite)``; it
    stops early, with ``finite`` false, at the first sample whose state is not finite. A step is
    never shortened: sample times fall on whole steps.
+4. ``run_watched(..., out, watch)``: ``run`` with the events check after every step
+   (:mod:`orbitsim.events`); a fourth result, True when the call stopped for the Python side.
+5. ``settings``: what a scenario may give (``integrator: {name: ..., <key>: <value>}``), key ->
+   :class:`Setting` (default, doc string, allowed values); empty for a scheme that takes none.
+6. ``validate_settings(settings) -> dict``: the settings checked, normalised and with every
+   default filled in; raises ValueError naming the key. Default: accepts none.
+7. ``make_work(m, G, settings) -> work``: the scheme's state and scratch beside ``pos``/``vel``.
+   Default: ``spec.work_slots`` scratch arrays, ``(work_slots, 3, N)``.
+8. ``carry_over(old_work, new_work)``: what the scheme keeps when the bodies change (a merge, a
+   removal) and ``work`` is made afresh. Default: nothing.
+9. ``check_bodies(m)``: the scheme's demands on the masses (a central body); raises ValueError.
+   Default: none.
+10. ``clock_time(work, grid_time) -> float``: the time of the state, for a scheme that keeps its
+    own clock. Default: the grid time ``t0 + n dt``.
+11. ``failure_message(work) -> str | None``: why the run stopped, when the scheme knows. Default: None.
+12. ``counters(work) -> dict | None``: the scheme's own counts (accepted steps, ...), written to
+    the trace's attributes. Default: None (a fixed-step scheme counts nothing but steps).
+13. ``take_merges(work) -> (rows, radii) | None``: the merges the scheme made inside its last step
+    (TRACE's Bulirsch-Stoer sub-steps), for :mod:`orbitsim.events.driver`. Default: None.
+14. ``handoff(work) -> (pairs, bodies, flags) | None``: what the last step integrated with its own
+    sub-steps, for the events' unresolved-step check. Default: None.
+15. ``run_constants``: indices of ``work`` entries a restored checkpoint does not override (the
+    run's own end time). Default: none.
+16. ``kicks``, ``drifts``: the coefficient tables of a drift-kick-drift composition (the forced
+    loops of :mod:`orbitsim.forces.stepping` step it by them). Default: None.
 
-``run`` lives in each scheme's module (it is a few lines) rather than in one dispatcher because a
+``run`` lives with each scheme (it is a few lines) rather than in one dispatcher because a
 jitted function that receives another as an argument never hits the on-disk cache, and a single
 switch over every scheme would compile all of them on a user's first run.
 
@@ -30,7 +58,9 @@ given on every step (:mod:`orbitsim.physics.gravity` says why).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -68,6 +98,98 @@ class IntegratorSpec:
     def names(self) -> tuple[str, ...]:
         """The name followed by its aliases."""
         return (self.name, *self.aliases)
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One setting a scenario may give a scheme (``integrator: {name: ias15, epsilon: 1e-10}``).
+
+    ``default`` is what the run uses when the scenario does not give it; ``doc`` says what it
+    does, in one line (``orbitsim list integrators --settings`` prints it); ``choices`` are the
+    values allowed when the setting is one of a list (the scheme's ``validate_settings`` has the
+    last word on values either way).
+    """
+
+    default: Any
+    doc: str
+    choices: tuple[Any, ...] = ()
+
+
+def setting_defaults(settings: Mapping[str, Setting]) -> dict[str, Any]:
+    """Every setting's default, in the scheme's order."""
+    return {key: setting.default for key, setting in settings.items()}
+
+
+def accept_no_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The ``validate_settings`` of a scheme without settings: none but ``name`` (the integrator's
+    name in a scenario mapping) is accepted. Raises ValueError naming the first other key."""
+    given = sorted(key for key in (settings or {}) if key != "name")
+    if given:
+        raise ValueError(f"this integrator takes no settings, got {given[0]!r}")
+    return {}
+
+
+def _no_carry_over(old_work: Any, new_work: Any) -> None:
+    """Nothing to keep across a change of bodies."""
+
+
+def _any_bodies(m: np.ndarray) -> None:
+    """No demands on the masses."""
+
+
+def _grid_clock(work: Any, grid_time: float) -> float:
+    """The time of the state is the grid's, ``t0 + n dt``."""
+    return grid_time
+
+
+def _nothing(work: Any) -> None:
+    """The scheme has nothing to report (no failure detail, counters, in-step merges or handoff)."""
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class Integrator:
+    """One scheme: its metadata, its jitted entry points and every hook the engine calls
+    (the numbered contract is in this module's docstring). Hooks left out get the defaults.
+    Each record is one object, compared by identity (its tables are arrays)."""
+
+    spec: IntegratorSpec
+    step: Callable[..., Any]
+    run: Callable[..., Any]
+    run_watched: Callable[..., Any]
+    settings: Mapping[str, Setting] = field(default_factory=dict)
+    validate_settings: Callable[[Mapping[str, Any] | None], dict[str, Any]] = accept_no_settings
+    make_work: Callable[..., Any] | None = None  # None: spec.work_slots scratch arrays (filled in below)
+    carry_over: Callable[[Any, Any], None] = _no_carry_over
+    check_bodies: Callable[[np.ndarray], None] = _any_bodies
+    clock_time: Callable[[Any, float], float] = _grid_clock
+    failure_message: Callable[[Any], str | None] = _nothing
+    counters: Callable[[Any], dict[str, Any] | None] = _nothing
+    take_merges: Callable[[Any], tuple[np.ndarray, np.ndarray] | None] = _nothing
+    handoff: Callable[[Any], tuple[np.ndarray, np.ndarray, int] | None] = _nothing
+    run_constants: tuple[int, ...] = ()
+    kicks: np.ndarray | None = None
+    drifts: np.ndarray | None = None
+
+    def default_settings(self) -> dict[str, Any]:
+        """Every setting's default, in the scheme's order (empty for a scheme without settings)."""
+        return setting_defaults(self.settings)
+
+    def __post_init__(self) -> None:
+        if self.make_work is None:
+            object.__setattr__(self, "make_work", _ScratchWork(self.spec.work_slots))
+        if (self.kicks is None) != (self.drifts is None):
+            raise ValueError(f"{self.spec.name}: a composition declares both kicks and drifts")
+
+
+@dataclass(frozen=True)
+class _ScratchWork:
+    """The default ``make_work``: ``slots`` scratch arrays of shape (3, N), as one (slots, 3, N) array."""
+
+    slots: int
+
+    def __call__(self, m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> np.ndarray:
+        return np.zeros((self.slots, 3, np.asarray(m).shape[0]))
 
 
 @jit_inline

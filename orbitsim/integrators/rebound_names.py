@@ -5,7 +5,7 @@ REBOUND (``sim.integrator = "whfast"``; REBOUND 5.2.2's ``Simulation.__setattr__
 
 - :data:`SAME_SCHEME`: REBOUND's name for a scheme orbitsim has under another name (``whfast`` is
   orbitsim's ``wisdom_holman``, with REBOUND's defaults: Jacobi coordinates, no corrector). The
-  registry accepts it (:func:`orbitsim.integrators.registry.get_module`), and ``orbitsim validate``
+  registry accepts it (:func:`orbitsim.integrators.registry.get_integrator`), and ``orbitsim validate``
   says what it became (:func:`rebound_note`).
 - REBOUND's ``leapfrog`` with its ``order`` setting (``sim.ri_leapfrog.order = 4``): orders 2, 4, 6
   and 8 are orbitsim's ``leapfrog``, ``leapfrog4``, ``leapfrog6``, ``leapfrog8``, which use

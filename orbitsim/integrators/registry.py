@@ -1,13 +1,16 @@
 """The one explicit, ordered list of orbitsim's integrators, and the name/alias lookup.
 
-Adding a scheme: write its module (``SPEC``, ``step``, ``run``; the contract is in
-:mod:`orbitsim.integrators.base`) and append the module's name, which is its ``SPEC.name``, to
-:data:`MODULE_NAMES`. ``tests/test_registry.py`` then checks it as part of the whole.
+Adding a scheme: write its module (its :class:`~orbitsim.integrators.base.Integrator` record, whose
+contract is in :mod:`orbitsim.integrators.base`) and append ``(name, module)`` to :data:`SCHEMES`;
+the module holds the record as the upper-case name (``verlet`` -> ``VERLET``). A family of schemes
+may share one module (the four leapfrogs) or be a package (``ias15``, ``wisdom_holman``, ``trace``:
+the package's ``__init__`` holds the record). ``tests/test_registry.py`` then checks it as part of
+the whole.
 
 The modules are imported when first asked for. Looking up a scheme by its name imports that
-scheme alone, so a run's start-up does not pay for the other eight: importing them costs about
-50 ms, 5% of a warm ``orbitsim run``, most of it the Wisdom-Holman operators. Looking up an alias,
-or reading :data:`MODULES` or :data:`INTEGRATORS`, imports them all.
+scheme's module alone, so a run's start-up does not pay for the others: importing them all costs
+about 50 ms, 5% of a warm ``orbitsim run``, most of it the Wisdom-Holman operators. Looking up an
+alias, or reading :data:`RECORDS` or :data:`INTEGRATORS`, imports them all.
 """
 
 from __future__ import annotations
@@ -15,48 +18,58 @@ from __future__ import annotations
 import difflib
 import functools
 import importlib
-from types import ModuleType
 from typing import Any
 
-from orbitsim.integrators.base import IntegratorSpec
+from orbitsim.integrators.base import Integrator, IntegratorSpec
 
-#: Every integrator module's name, in the order ``orbitsim list integrators`` shows them.
-MODULE_NAMES: tuple[str, ...] = (
-    "euler",
-    "semi_implicit_euler",
-    "verlet",
-    "leapfrog",
-    "rk4",
-    "leapfrog4",
-    "leapfrog6",
-    "leapfrog8",
-    "wisdom_holman",
-    "ias15",
-    "trace",
+#: Every integrator, in the order ``orbitsim list integrators`` shows them: its name and the module
+#: of ``orbitsim.integrators`` that holds its record.
+SCHEMES: tuple[tuple[str, str], ...] = (
+    ("euler", "euler"),
+    ("semi_implicit_euler", "semi_implicit_euler"),
+    ("verlet", "verlet"),
+    ("leapfrog", "leapfrog"),
+    ("rk4", "rk4"),
+    ("leapfrog4", "leapfrog"),
+    ("leapfrog6", "leapfrog"),
+    ("leapfrog8", "leapfrog"),
+    ("wisdom_holman", "wisdom_holman"),
+    ("ias15", "ias15"),
+    ("trace", "trace"),
 )
 
-
-def _module(name: str) -> ModuleType:
-    return importlib.import_module(f"{__package__}.{name}")
-
-
-@functools.cache
-def _modules() -> tuple[ModuleType, ...]:
-    return tuple(_module(name) for name in MODULE_NAMES)
+#: Every integrator's name, in :data:`SCHEMES` order.
+NAMES: tuple[str, ...] = tuple(name for name, _ in SCHEMES)
+_MODULE_OF = dict(SCHEMES)
 
 
 @functools.cache
-def _by_name() -> dict[str, ModuleType]:
-    return {name: module for module in _modules() for name in module.SPEC.names}
+def _record(name: str) -> Integrator:
+    """The record of the scheme called ``name`` (a registry name), importing its module."""
+    module = importlib.import_module(f"{__package__}.{_MODULE_OF[name]}")
+    record = getattr(module, name.upper())  # declared, not optional: a module without it fails here
+    if not isinstance(record, Integrator) or record.spec.name != name:
+        raise TypeError(f"{module.__name__}.{name.upper()} is not the record of {name!r}")
+    return record
+
+
+@functools.cache
+def _records() -> tuple[Integrator, ...]:
+    return tuple(_record(name) for name in NAMES)
+
+
+@functools.cache
+def _by_name() -> dict[str, Integrator]:
+    return {name: record for record in _records() for name in record.spec.names}
 
 
 def __getattr__(attr: str) -> Any:
-    """``MODULES`` (every integrator module) and ``INTEGRATORS`` (their specs), in
-    :data:`MODULE_NAMES` order, imported on first use."""
-    if attr == "MODULES":
-        return _modules()
+    """``RECORDS`` (every integrator's record) and ``INTEGRATORS`` (their specs), in
+    :data:`SCHEMES` order, imported on first use."""
+    if attr == "RECORDS":
+        return _records()
     if attr == "INTEGRATORS":
-        return tuple(module.SPEC for module in _modules())
+        return tuple(record.spec for record in _records())
     raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
@@ -73,26 +86,26 @@ def _normalise(name: str) -> str:
     return name.strip().lower().replace("-", "_")
 
 
-def get_module(name: str) -> ModuleType:
-    """The module (``SPEC``, ``step``, ``run``) for an integrator name, alias or REBOUND name of the same
-    scheme (``whfast``: :mod:`orbitsim.integrators.rebound_names`)."""
+def get_integrator(name: str) -> Integrator:
+    """The record (``spec``, ``step``, ``run``, every hook) for an integrator name, alias or REBOUND
+    name of the same scheme (``whfast``: :mod:`orbitsim.integrators.rebound_names`)."""
     from orbitsim.integrators.rebound_names import SAME_SCHEME
 
     key = _normalise(name) if isinstance(name, str) else ""
     key = SAME_SCHEME.get(key, key)
-    if key in MODULE_NAMES:
-        return _module(key)
-    module = _by_name().get(key)
-    if module is None:
+    if key in _MODULE_OF:
+        return _record(key)
+    record = _by_name().get(key)
+    if record is None:
         raise UnknownIntegratorError(_unknown_message(name, key))
-    return module
+    return record
 
 
 def _unknown_message(name: Any, key: str) -> str:
     """One line for an unknown name: REBOUND's closest scheme, else the nearest valid name, then every name."""
     from orbitsim.integrators.rebound_names import SAME_SCHEME, closest_scheme
 
-    specs = [m.SPEC for m in _modules()]
+    specs = [record.spec for record in _records()]
     names = ", ".join(spec.name for spec in specs)
     aliases = ", ".join(a for spec in specs for a in spec.aliases)
     rebound = closest_scheme(key) if key else None
@@ -105,7 +118,7 @@ def _unknown_message(name: Any, key: str) -> str:
 
 def get_spec(name: str) -> IntegratorSpec:
     """The :class:`IntegratorSpec` for an integrator name or alias."""
-    return get_module(name).SPEC
+    return get_integrator(name).spec
 
 
 def canonical_name(name: str) -> str:

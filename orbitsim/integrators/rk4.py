@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.integrators.base import IntegratorSpec, record_sample
+from orbitsim.integrators.base import Integrator, IntegratorSpec, record_sample
 from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
 
 SPEC = IntegratorSpec(
@@ -112,7 +112,11 @@ def run(state, force, dt, work, t0, n_done, targets, record, out):
             written += 1
     return written, n_done, True
 
+
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
     return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
+
+
+RK4 = Integrator(spec=SPEC, step=step, run=run, run_watched=run_watched)

@@ -2,7 +2,7 @@
 
 Two codes that take the same substeps with the same coefficients produce the same trajectory up
 to round-off. orbitsim's leapfrog family uses REBOUND's coefficient tables (see
-:mod:`orbitsim.integrators.composition`), so the pairs below should agree to ~1e-13 relative on
+:mod:`orbitsim.integrators.leapfrog`), so the pairs below should agree to ~1e-13 relative on
 well-behaved systems. What separates them is only round-off: orbitsim's force sum is reassociated
 for vectorisation, its multiply-adds fused (a relative change of ~4e-15 per evaluation) and each
 code rounds differently.

@@ -29,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from orbitsim.integrators.wh_settings import validate_settings
+from orbitsim.integrators.wisdom_holman.settings import validate_settings
 
 #: orbitsim's ``coordinates`` setting -> REBOUND's WHFast ``coordinates`` value.
 REBOUND_COORDINATES = {"jacobi": "jacobi", "democratic_heliocentric": "democraticheliocentric"}
@@ -44,7 +44,7 @@ def configure_rebound_whfast(sim: Any, settings: Mapping[str, Any] | None) -> No
         A simulation with its particles, G and dt already set (dt is not touched).
     settings : mapping or None
         orbitsim's integrator settings (``coordinates``, ``corrector``); validated and
-        defaulted by :func:`orbitsim.integrators.wh_settings.validate_settings`.
+        defaulted by :func:`orbitsim.integrators.wisdom_holman.settings.validate_settings`.
 
     Raises
     ------

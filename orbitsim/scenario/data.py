@@ -41,7 +41,7 @@ class ScenarioData:
     integrator : str
         Canonical registry name.
     integrator_settings : dict
-        Settings for the integrator, checked against its module's ``SETTINGS`` schema.
+        Settings for the integrator, checked against its record's ``settings``.
     dt : float
         Fixed timestep (> 0); never shortened.
     steps : int

@@ -120,7 +120,7 @@ class Scenario(ScenarioData):
 
     def _validate_integrator(self) -> None:
         from orbitsim.integrators.rebound_names import leapfrog_order
-        from orbitsim.integrators.registry import UnknownIntegratorError, get_module
+        from orbitsim.integrators.registry import UnknownIntegratorError, get_integrator
 
         settings = self.integrator_settings or {}
         name = self.integrator
@@ -130,20 +130,18 @@ class Scenario(ScenarioData):
             except ValueError as err:
                 raise ScenarioError(str(err), key="integrator.order") from None
         try:
-            module = get_module(name)
+            scheme = get_integrator(name)
         except UnknownIntegratorError as err:
             raise ScenarioError(str(err), key="integrator") from None
-        self._set("integrator", module.SPEC.name)
+        self._set("integrator", scheme.spec.name)
         if not isinstance(settings, Mapping):
             raise ScenarioError(f"integrator settings must be a mapping, got {describe(settings)}",
                                 key="integrator")
-        self._set("integrator_settings", check_settings(module, dict(settings)))
-        check_bodies = getattr(module, "check_bodies", None)  # a scheme's demands on the bodies (a central mass)
-        if check_bodies is not None:
-            try:
-                check_bodies(self.masses)
-            except ValueError as err:
-                raise ScenarioError(str(err), key="bodies") from None
+        self._set("integrator_settings", check_settings(scheme, dict(settings)))
+        try:
+            scheme.check_bodies(self.masses)  # a scheme's demands on the bodies (a central mass)
+        except ValueError as err:
+            raise ScenarioError(str(err), key="bodies") from None
 
     def _validate_time(self) -> None:
         from orbitsim.scenario.time_checks import check_time

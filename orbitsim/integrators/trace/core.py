@@ -3,9 +3,9 @@
 TRACE is a democratic heliocentric Wisdom-Holman map whose close encounters and pericentre
 passages are handed to Bulirsch-Stoer. One step of size dt, from the inertial state:
 
-1. :func:`~.trace_operators.inertial_to_dh`: heliocentric positions, barycentric velocities (the star's included),
+1. :func:`~.operators.inertial_to_dh`: heliocentric positions, barycentric velocities (the star's included),
    and the centre of mass, which drifts separately.
-2. :func:`~.trace_switch.pre_step_check`: flag pairs that will come within ``r_crit_hill`` Hill
+2. :func:`~.switch.pre_step_check`: flag pairs that will come within ``r_crit_hill`` Hill
    radii during the first half step, and bodies near pericentre.
 3. The step (REBOUND's ``step_try``, in :func:`_trace_step`):
 
@@ -16,9 +16,9 @@ passages are handed to Bulirsch-Stoer. One step of size dt, from the inertial st
      pericentre step, whose jumps are skipped);
    * a pericentre flag with ``peri_mode = FULL_BS``: the whole system by BS in the inertial frame.
 
-4. :func:`~.trace_switch.post_step_check` on the end state, looking back over the second half
+4. :func:`~.switch.post_step_check` on the end state, looking back over the second half
    step; if it adds any flag, the step is redone once from the start with the union of flags.
-5. :func:`~.trace_operators.dh_to_inertial`.
+5. :func:`~.operators.dh_to_inertial`.
 
 The port reproduces REBOUND 5.2.2's ``integrator_trace.c`` (with ``integrator_bs.c`` and WHFast's
 Kepler solver) to the bit: the same operation order everywhere, the BS sub-step clock that starts
@@ -31,10 +31,11 @@ Test particles: bodies ``n_active..N-1`` (massless, after all massive bodies), R
 ``testparticle_type = 0``. Encounters that involve only test particles leave the massive bodies
 exactly on their Kepler-drift state.
 
-Collisions: when the caller sets radii and codes in the work (:mod:`.trace_contacts`), the
-Bulirsch-Stoer sub-step loops (:mod:`.trace_substeps`) search for contacts after every accepted
-sub-step and merge, halt or log them (:mod:`.trace_collide`). Not in this module yet: FULL_IAS15,
-user forces.
+Collisions: when the caller sets radii and codes in the work (:mod:`.contacts`), the
+Bulirsch-Stoer sub-step loops (:mod:`.substeps`) search for contacts after every accepted
+sub-step and merge, halt or log them (:mod:`.collide`). The FULL_IAS15 pericentre step is
+:mod:`.ias15`'s. Forces beyond Newtonian gravity are not applied: a run with forces refuses
+``trace`` (:mod:`orbitsim.forces.compat`).
 
 References
 ----------
@@ -50,11 +51,11 @@ from typing import Any
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
-from orbitsim.integrators.trace_bs import BS_INT_LENGTH, BS_REAL_LENGTH, N_ROWS
-from orbitsim.integrators.trace_collide import COLLIDE_LENGTH, HIT_COLUMNS, K_DETECT
-from orbitsim.integrators.trace_forces import interaction_kick
-from orbitsim.integrators.trace_kepler import PREV_X_LENGTH, kepler_drift
-from orbitsim.integrators.trace_layout import (
+from orbitsim.integrators.trace.bs import BS_INT_LENGTH, BS_REAL_LENGTH, N_ROWS
+from orbitsim.integrators.trace.collide import COLLIDE_LENGTH, HIT_COLUMNS, K_DETECT
+from orbitsim.integrators.trace.forces import interaction_kick
+from orbitsim.integrators.trace.kepler import PREV_X_LENGTH, kepler_drift
+from orbitsim.integrators.trace.layout import (
     BOOK_LENGTH,
     C_FULL_STEPS,
     C_REDONE,
@@ -67,9 +68,9 @@ from orbitsim.integrators.trace_layout import (
     W_BOOK,
     W_FRAMES,
 )
-from orbitsim.integrators.trace_operators import dh_to_inertial, inertial_to_dh, jump, restore_state, save_state
-from orbitsim.integrators.trace_substeps import encounter_bs, full_bs_step, full_ias15
-from orbitsim.integrators.trace_switch import (
+from orbitsim.integrators.trace.operators import dh_to_inertial, inertial_to_dh, jump, restore_state, save_state
+from orbitsim.integrators.trace.substeps import encounter_bs, full_bs_step, full_ias15
+from orbitsim.integrators.trace.switch import (
     FULL_BS,
     FULL_IAS15,
     PARTIAL_BS,
@@ -97,7 +98,7 @@ def make_work(n_bodies: int) -> tuple[np.ndarray, ...]:
 
     Nothing in it carries over from one step to the next except the counters: every step
     rebuilds its flags and its BS controller, as REBOUND does. Collisions are off until the
-    caller sets the radii and the codes (:mod:`.trace_collide`).
+    caller sets the radii and the codes (:mod:`.collide`).
     """
     n = int(n_bodies)
     if n < 2:

@@ -1,7 +1,7 @@
 """Wisdom-Holman map (WHFast arrangement): exact Kepler orbits about the star plus planet kicks.
 
 For a dominant central body (body 0) the Hamiltonian splits into Kepler orbits and a small
-interaction (:mod:`orbitsim.integrators.wh_operators`). One step of size dt is
+interaction (:mod:`orbitsim.integrators.wisdom_holman.operators`). One step of size dt is
 
     Jacobi:                    K(dt/2) I(dt) K(dt/2)
     democratic heliocentric:   K(dt/2) J(dt/2) I(dt) J(dt/2) K(dt/2)
@@ -14,8 +14,13 @@ The arrangement is exactly REBOUND's WHFast with ``safe_mode = 0`` and
 ``keep_unsynchronized = 1`` (see :mod:`orbitsim.reference.wh_pairing`): the closing K(dt/2) of a
 step and the opening K(dt/2) of the next are merged into one K(dt); an output copies the mapping
 state, applies the owed K(dt/2) and the inverse corrector to the copy, and transforms it to
-inertial coordinates. Symplectic correctors (orders 3-17, :mod:`~.wh_correctors`) are applied
+inertial coordinates. Symplectic correctors (orders 3-17, :mod:`~.correctors`) are applied
 only at those output times and when the map starts.
+
+The package: :mod:`.operators`, the map's operators (coordinate transforms, interaction kick,
+jump) and the ``work`` layout; :mod:`.correctors`, the symplectic correctors; :mod:`.settings`,
+the settings and their validation; this module, the map itself and the scheme's record
+(:data:`WISDOM_HOLMAN`).
 
 Internal state (what a checkpoint must save to continue bit for bit)
 --------------------------------------------------------------------
@@ -63,9 +68,9 @@ import numpy as np
 from orbitsim._jit import jit
 from orbitsim.events.kernels import watched_run
 from orbitsim.forces.hooks import force_arrays
-from orbitsim.integrators.base import IntegratorSpec, record_sample
-from orbitsim.integrators.wh_correctors import CORRECTOR_STAGES, apply_corrector
-from orbitsim.integrators.wh_operators import (
+from orbitsim.integrators.base import Integrator, IntegratorSpec, record_sample
+from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector
+from orbitsim.integrators.wisdom_holman.operators import (
     DEMOCRATIC_HELIOCENTRIC,
     F_BODY,
     F_PHASE,
@@ -93,7 +98,7 @@ from orbitsim.integrators.wh_operators import (
     to_inertial_pos,
     to_inertial_vel,
 )
-from orbitsim.integrators.wh_settings import COORDINATE_IDS, SETTINGS, validate_settings
+from orbitsim.integrators.wisdom_holman.settings import COORDINATE_IDS, SETTINGS, validate_settings
 from orbitsim.physics.coordinates import jacobi_weights
 from orbitsim.physics.kepler import (
     KEPLER_OK,
@@ -106,6 +111,7 @@ from orbitsim.physics.kepler import (
 __all__ = [
     "SETTINGS",
     "SPEC",
+    "WISDOM_HOLMAN",
     "KeplerConvergenceError",
     "check_bodies",
     "failure_message",
@@ -114,6 +120,7 @@ __all__ = [
     "raise_for_failure",
     "restore_internal_state",
     "run",
+    "run_watched",
     "step",
     "validate_settings",
 ]
@@ -330,6 +337,7 @@ def run(state, force, dt, work, t0, n_done, targets, record, out):
             written += 1
     return written, n_done, True
 
+
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
@@ -390,3 +398,16 @@ def raise_for_failure(work: tuple[Any, ...]) -> None:
     message = failure_message(work)
     if message is not None:
         raise KeplerConvergenceError(message)
+
+
+WISDOM_HOLMAN = Integrator(
+    spec=SPEC,
+    step=step,
+    run=run,
+    run_watched=run_watched,
+    settings=SETTINGS,
+    validate_settings=validate_settings,
+    make_work=make_work,
+    check_bodies=check_bodies,
+    failure_message=failure_message,
+)

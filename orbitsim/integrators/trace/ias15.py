@@ -1,5 +1,9 @@
 """TRACE's FULL_IAS15 pericentre step: the whole outer step by a fresh IAS15 (jitted, inertial frame).
 
+Reuses :mod:`orbitsim.integrators.ias15.core`'s Gauss-Radau arithmetic; ``step_try`` itself is not
+reused because its force sum (vectorised, reassociated) differs from REBOUND's basic gravity in the
+last bits, which TRACE's bit-for-bit agreement with REBOUND forbids.
+
 When TRACE flags a pericentre passage and ``peri_mode`` is FULL_IAS15 (REBOUND's mode 2), REBOUND
 5.2.2 drops the Wisdom-Holman split for that step and integrates the plain Newtonian N-body
 problem from t to t + dt with an IAS15 created for the step (``integrator_trace.c``,
@@ -15,9 +19,9 @@ the same, in REBOUND's order of floating-point operations, so the two agree bit 
   nothing restores the last full step;
 * REBOUND's basic gravity (integrator_trace.c:1035; gravity.c:167-282): :func:`basic_accelerations`.
 
-The Gauss-Radau arithmetic is :mod:`~.ias15_core`'s, which follows ``integrator_ias15.c``
+The Gauss-Radau arithmetic is :mod:`~orbitsim.integrators.ias15.core`'s, which follows ``integrator_ias15.c``
 operation by operation. Only the force differs: orbitsim's IAS15 sums forces vectorised and
-reassociated (equal to REBOUND's to round-off only), so :func:`_try_step` is ``ias15_core.step_try``
+reassociated (equal to REBOUND's to round-off only), so :func:`_try_step` is ``ias15.core.step_try``
 with :func:`basic_accelerations` swapped in. Keep the two in step.
 
 One piece of simulation state reaches into the fresh IAS15: after a rejected try it predicts the
@@ -34,7 +38,7 @@ import numpy as np
 
 from orbitsim._jit import jit
 from orbitsim.integrators.base import is_finite_state
-from orbitsim.integrators.ias15_core import (
+from orbitsim.integrators.ias15.core import (
     CLOCK_DT,
     CLOCK_DT_LAST_DONE,
     CLOCK_STARTED,
@@ -74,7 +78,7 @@ from orbitsim.integrators.ias15_core import (
     _prs23_dt,
     predict_next,
 )
-from orbitsim.integrators.ias15_tables import H
+from orbitsim.integrators.ias15.tables import H
 
 __all__ = ["FULL_IAS15_SETTINGS", "STATUS_NON_FINITE", "STATUS_OK", "STATUS_STEP_UNDERFLOW", "basic_accelerations",
            "full_ias15_step", "make_full_ias15_work", "new_full_ias15_work"]
@@ -88,7 +92,7 @@ MIN_STEP_FRACTION = 1e-14
 
 
 def make_full_ias15_work(n_bodies: int) -> tuple:
-    """The IAS15 ``work`` (:data:`~.ias15_core.WORK_FIELDS`) with :data:`FULL_IAS15_SETTINGS`:
+    """The IAS15 ``work`` (:data:`~orbitsim.integrators.ias15.core.WORK_FIELDS`) with :data:`FULL_IAS15_SETTINGS`:
     what :func:`new_full_ias15_work` makes inside a step, from Python (with the check of N)."""
     n = int(n_bodies)
     if n < 2:
@@ -162,7 +166,7 @@ def _reset_ias15(work, t, dt, dt_last_done):
 
 @jit
 def _converge(pos, m, G, softening2, n_active, work, dt):
-    """The predictor-corrector passes of one try (``ias15_core.step_try``; integrator_ias15.c:386-606)."""
+    """The predictor-corrector passes of one try (``ias15.core.step_try``; integrator_ias15.c:386-606)."""
     b, g, csb = work[W_B], work[W_G], work[W_CSB]
     x0, v0, a0, at, csx = work[W_X0], work[W_V0], work[W_A0], work[W_AT], work[W_CSX]
     counts = work[W_COUNTS]
@@ -193,7 +197,7 @@ def _converge(pos, m, G, softening2, n_active, work, dt):
 
 @jit
 def _try_step(pos, vel, acc, m, G, softening2, n_active, work):
-    """Try one step of the clock's dt (``ias15_core.step_try`` with :func:`basic_accelerations`).
+    """Try one step of the clock's dt (``ias15.core.step_try`` with :func:`basic_accelerations`).
 
     True: taken; pos, vel, the clock and ``acc`` = a(pos) advance. False: rejected; the state is
     as on entry and the clock holds the smaller step to retry (integrator_ias15.c:707-811)."""

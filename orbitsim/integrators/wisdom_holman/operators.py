@@ -40,7 +40,7 @@ import math
 
 from orbitsim._jit import jit, stop_requested
 from orbitsim.forces.hooks import add_interaction_forces
-from orbitsim.integrators.wh_settings import COORDINATE_IDS
+from orbitsim.integrators.wisdom_holman.settings import COORDINATE_IDS
 from orbitsim.physics.coordinates import (
     democratic_heliocentric_to_inertial_pos,
     democratic_heliocentric_to_inertial_vel,

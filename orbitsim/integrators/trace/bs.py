@@ -2,7 +2,7 @@
 
 A port of REBOUND's ``integrator_bs.c`` (itself after Hairer, Norsett & Wanner, *Solving Ordinary
 Differential Equations I*, section II.9, by way of Hipparchus), written for the one ODE TRACE
-integrates at a time, with its derivative dispatched by kind (:func:`.trace_forces.derivatives`).
+integrates at a time, with its derivative dispatched by kind (:func:`.forces.derivatives`).
 
 One step of size H: the modified midpoint rule with ``n_k = 2, 6, 10, ..., 34`` sub-steps
 (:data:`SEQUENCE`), each result a column of the Aitken-Neville extrapolation in ``h^2``
@@ -23,12 +23,12 @@ What TRACE relies on, and this port keeps:
 The ODE state lives in the rows of one (:data:`N_ROWS`, 6N) array (``R_*`` constants), the step
 controller's numbers in two small arrays (``BS_*`` constants), so a step allocates nothing.
 
-Why not :mod:`orbitsim.integrators.bs_core` (the general BS port): it stores y as (3, n) blocks,
-so the stability check's sums run in another order than REBOUND's; it fails a step on any nan
-where REBOUND's ``MAX`` macro can drop one; and its ``bs_integrate`` owns the sub-step loop, while
-TRACE needs two different loops (the FULL_BS one clamps the step after the proposal, the
-encounter one before it) with a hook after every accepted sub-step for the collision search.
-This module is only what TRACE needs, in REBOUND's layout.
+This is orbitsim's only Bulirsch-Stoer, and only what TRACE needs, in REBOUND's layout: y
+interleaved per body (a layout of (3, n) blocks would run the stability check's sums in another
+order), a nan that REBOUND's ``MAX`` macro drops dropped here too, and the sub-step loops left to
+the caller (:mod:`.substeps`), since TRACE needs two (the FULL_BS one clamps the step after the
+proposal, the encounter one before it) with a hook after every accepted sub-step for the
+collision search.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
-from orbitsim.integrators.trace_forces import derivatives
+from orbitsim.integrators.trace.forces import derivatives
 
 #: REBOUND's defaults inside TRACE (not user-settable there either).
 EPS_ABS = 1e-8

@@ -5,19 +5,19 @@
   star's pull and their flagged pairs (REBOUND ``reb_integrator_trace_bs_step``);
 * :func:`full_bs_step`: a pericentre step in ``full_bs`` mode, the whole system in the inertial
   frame on the plain Newtonian problem (:func:`full_ias15` does the same with IAS15, ``full_ias15``
-  mode, through :mod:`.trace_ias15`).
+  mode, through :mod:`.ias15`).
 
 Both run on the absolute clock from t (REBOUND's BS sub-steps do, and the clock's last bits
 decide the last sub-step), with a fresh controller, and both differ from REBOUND's only in what
-REBOUND does with a collision that orbitsim resolves otherwise (:mod:`.trace_collide`): a body
+REBOUND does with a collision that orbitsim resolves otherwise (:mod:`.collide`): a body
 that merged away stays in the arrays as a massless husk, out of the ODE, until the step ends.
 """
 
 from __future__ import annotations
 
 from orbitsim._jit import jit
-from orbitsim.integrators.ias15_core import CLOCK_DT_LAST_DONE, COUNT_ACCEPTED, W_CLOCK, W_COUNTS
-from orbitsim.integrators.trace_bs import (
+from orbitsim.integrators.ias15.core import CLOCK_DT_LAST_DONE, COUNT_ACCEPTED, W_CLOCK, W_COUNTS
+from orbitsim.integrators.trace.bs import (
     BS_ACCEPTED,
     BS_DT_PROPOSED,
     BS_FIRST_OR_LAST_STEP,
@@ -26,11 +26,11 @@ from orbitsim.integrators.trace_bs import (
     bs_reset,
     bs_step,
 )
-from orbitsim.integrators.trace_collide import DETECT_NONE, K_DETECT, collide_set
-from orbitsim.integrators.trace_forces import ODE_ENCOUNTER, ODE_NEWTON
-from orbitsim.integrators.trace_ias15 import STATUS_OK as IAS15_OK
-from orbitsim.integrators.trace_ias15 import full_ias15_step, new_full_ias15_work
-from orbitsim.integrators.trace_layout import (
+from orbitsim.integrators.trace.collide import DETECT_NONE, K_DETECT, collide_set
+from orbitsim.integrators.trace.forces import ODE_ENCOUNTER, ODE_NEWTON
+from orbitsim.integrators.trace.ias15 import STATUS_OK as IAS15_OK
+from orbitsim.integrators.trace.ias15 import full_ias15_step, new_full_ias15_work
+from orbitsim.integrators.trace.layout import (
     C_CONTACTS,
     C_ENC_REJECTED,
     C_ENC_SUBSTEPS,
@@ -42,8 +42,8 @@ from orbitsim.integrators.trace_layout import (
     STATUS_BS_NAN,
     STATUS_IAS15_FAILED,
 )
-from orbitsim.integrators.trace_operators import dh_to_inertial, inertial_to_dh
-from orbitsim.integrators.trace_switch import ST_CURRENT_C, ST_ENC_N_ACTIVE, ST_FORCE_ACCEPT, ST_STATUS, ST_TPONLY
+from orbitsim.integrators.trace.operators import dh_to_inertial, inertial_to_dh
+from orbitsim.integrators.trace.switch import ST_CURRENT_C, ST_ENC_N_ACTIVE, ST_FORCE_ACCEPT, ST_STATUS, ST_TPONLY
 
 
 @jit
@@ -204,7 +204,7 @@ def full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real
 @jit
 def full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com, book):
     """The whole step by a fresh IAS15 on the inertial Newtonian problem (the FULL_IAS15 pericentre
-    step, :func:`.trace_ias15.full_ias15_step`). Returns REBOUND's ``dt_last_done`` for a redo of
+    step, :func:`.ias15.full_ias15_step`). Returns REBOUND's ``dt_last_done`` for a redo of
     this step: the last IAS15 step taken.
 
     Contacts are not searched inside it (REBOUND does, after every IAS15 step): IAS15 would go on

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from orbitsim._jit import jit
-from orbitsim.integrators.wh_operators import (
+from orbitsim.integrators.wisdom_holman.operators import (
     JACOBI,
     W_CONFIG,
     W_IACC,
@@ -46,7 +46,7 @@ from orbitsim.integrators.wh_operators import (
     W_WEIGHTS,
     interaction_kick,
 )
-from orbitsim.integrators.wh_settings import CORRECTOR_ORDERS
+from orbitsim.integrators.wisdom_holman.settings import CORRECTOR_ORDERS
 from orbitsim.physics.kepler import KEPLER_OK, kepler_drift_bodies
 
 #: a_1 = sqrt(7/40); the stage drifts are multiples a_k = k a_1.

@@ -10,14 +10,15 @@ Stiefel's functions ``G_n(X) = X^n c_n(beta X^2)``, the anomaly X of a step dt s
 and the state moves by the increments ``dx = f x0 + g v0``, ``dv = fd x0 + gd v0`` with
 ``f = -mu G2 / r0``, ``g = dt - mu G3``, ``fd = -mu G1 / (r0 r)``, ``gd = -mu G2 / r``.
 
-Why not :mod:`orbitsim.physics.kepler`: that solver starts from a fourth-order series, stops on
-a residual test, reduces long steps by whole periods and sums the Stumpff series up to
-``|z| = 1``; each of these changes the last bits, and TRACE's switching turns last-bit
-differences into different step histories. This module follows ``reb_integrator_whfast_kepler_solver``
-(REBOUND ``integrator_whfast.c``) instead: the same second-order start, one Newton step, then
-Laguerre-Conway (Conway 1986) if that step moved X by more than 1% of a period, else Newton to a
-fixed point or a two-cycle, bisection as the last resort, and the increment form. The Stumpff
-series is REBOUND's ``stumpff_cs3`` (quarter z to ``|z| <= 0.1``, 13 terms, double back up).
+Why not :mod:`orbitsim.physics.kepler` (its solver is :mod:`orbitsim.physics.kepler_solver`): that
+solver starts from a fourth-order series, stops on a residual test, reduces long steps by whole
+periods and sums the Stumpff series up to ``|z| = 1``; each of these changes the last bits, and
+TRACE's switching turns last-bit differences into different step histories. This module follows
+``reb_integrator_whfast_kepler_solver`` (REBOUND ``integrator_whfast.c``) instead: the same
+second-order start, one Newton step, then Laguerre-Conway (Conway 1986) if that step moved X by
+more than 1% of a period, else Newton to a fixed point or a two-cycle, bisection as the last
+resort, and the increment form. The Stumpff series is REBOUND's ``stumpff_cs3`` (quarter z to
+``|z| <= 0.1``, 13 terms, double back up).
 
 References
 ----------

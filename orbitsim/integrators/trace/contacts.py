@@ -1,4 +1,4 @@
-"""Between TRACE's in-step contact table (:mod:`.trace_collide`) and the events watch.
+"""Between TRACE's in-step contact table (:mod:`.collide`) and the events watch.
 
 :func:`arm_collisions` copies the watch's radii and collision codes into the step's work before a
 watched call; :func:`post_contacts` hands the contacts of a step to the watch after it:
@@ -6,7 +6,7 @@ watched call; :func:`post_contacts` hands the contacts of a step to the watch af
 * ``log``: each contact is an episode of the watch (logged when it starts; the end-of-step scan
   then extends the same episode rather than logging it again);
 * ``halt``: logged, and the run halts after this step;
-* ``merge``: left in the table for Python (:func:`.trace.take_merges`), which builds the events
+* ``merge``: left in the table for Python (:func:`orbitsim.integrators.trace.take_merges`), which builds the events
   and takes the merged bodies out.
 """
 
@@ -30,7 +30,7 @@ from orbitsim.events.layout import (
     log_event,
     open_pair,
 )
-from orbitsim.integrators.trace_collide import (
+from orbitsim.integrators.trace.collide import (
     H_DIST,
     H_KEEP,
     H_LOSE,

@@ -1,4 +1,4 @@
-"""The coefficient tables of IAS15's Gauss-Radau step (:mod:`orbitsim.integrators.ias15_core`).
+"""The coefficient tables of IAS15's Gauss-Radau step (:mod:`orbitsim.integrators.ias15.core`).
 
 Constants of the quadrature alone, not of any code: the node spacings and the two changes of
 basis between the divided differences g and the polynomial coefficients b. ``tests/test_ias15.py``

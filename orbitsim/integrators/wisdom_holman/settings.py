@@ -1,8 +1,8 @@
-"""Settings of the ``wisdom_holman`` integrator: the schema and its validation (no Numba import).
+"""Settings of the ``wisdom_holman`` integrator: the schema and its validation.
 
 A scenario passes them as ``integrator: {name: wisdom_holman, coordinates: jacobi, corrector: 11}``;
-the scenario loader checks them against :data:`SETTINGS` / :func:`validate_settings`, and
-:func:`orbitsim.integrators.wisdom_holman.make_work` validates them again (a direct API call
+the scenario loader checks them against the record's :data:`SETTINGS` / :func:`validate_settings`,
+and :func:`orbitsim.integrators.wisdom_holman.make_work` validates them again (a direct API call
 has no loader in front of it).
 """
 
@@ -13,16 +13,20 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.integrators.base import Setting
+
 #: Corrector orders offered (Wisdom, Holman & Touma 1996; Rein & Tamayo 2015); 0 means none.
 CORRECTOR_ORDERS = (0, 3, 5, 7, 11, 17)
 
-#: Settings schema: key -> allowed values, the first being the default.
-SETTINGS: dict[str, tuple[Any, ...]] = {
-    "coordinates": ("jacobi", "democratic_heliocentric"),
-    "corrector": CORRECTOR_ORDERS,
+#: Settings schema: key -> :class:`~orbitsim.integrators.base.Setting` (REBOUND's defaults).
+SETTINGS: dict[str, Setting] = {
+    "coordinates": Setting("jacobi", "the coordinates of the map, Jacobi or democratic heliocentric (also written "
+                           "as REBOUND does, democraticheliocentric, or dh)", ("jacobi", "democratic_heliocentric")),
+    "corrector": Setting(0, "order of the symplectic corrector applied at the start and at every output "
+                         "(0: none; the correctors need jacobi coordinates)", CORRECTOR_ORDERS),
 }
 
-#: Coordinate name -> the id the jitted kernels dispatch on (see ``wh_operators``).
+#: Coordinate name -> the id the jitted kernels dispatch on (see :mod:`.operators`).
 COORDINATE_IDS = {"jacobi": 0, "democratic_heliocentric": 1}
 #: Other spellings accepted for ``coordinates`` (REBOUND's enum name among them).
 COORDINATE_ALIASES = {"democraticheliocentric": "democratic_heliocentric", "dh": "democratic_heliocentric"}
@@ -46,7 +50,7 @@ def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
     Raises
     ------
     ValueError
-        Naming the offending key: an unknown key, a value outside :data:`SETTINGS`, or a
+        Naming the offending key: an unknown key, a value outside a setting's choices, or a
         corrector with democratic heliocentric coordinates (the correctors need Jacobi
         coordinates, as in REBOUND).
     """
@@ -55,16 +59,16 @@ def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
     unknown = sorted(set(given) - set(SETTINGS))
     if unknown:
         raise ValueError(f"wisdom_holman setting {unknown[0]!r} is unknown; valid keys: {', '.join(SETTINGS)}")
-    coordinates = given.get("coordinates", SETTINGS["coordinates"][0])
+    coordinates = given.get("coordinates", SETTINGS["coordinates"].default)
     if isinstance(coordinates, str):
         coordinates = coordinates.strip().lower().replace("-", "_").replace(" ", "_")
         coordinates = COORDINATE_ALIASES.get(coordinates, coordinates)
-    if coordinates not in SETTINGS["coordinates"]:
+    if coordinates not in SETTINGS["coordinates"].choices:
         raise ValueError(
             f"wisdom_holman setting 'coordinates': {given.get('coordinates')!r} is not one of "
-            + ", ".join(SETTINGS["coordinates"])
+            + ", ".join(SETTINGS["coordinates"].choices)
         )
-    corrector = given.get("corrector", SETTINGS["corrector"][0])
+    corrector = given.get("corrector", SETTINGS["corrector"].default)
     is_integer = isinstance(corrector, int | np.integer) and not isinstance(corrector, bool)
     if not is_integer or corrector not in CORRECTOR_ORDERS:
         raise ValueError(

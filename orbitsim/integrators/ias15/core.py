@@ -33,7 +33,7 @@ import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.hooks import add_forces, add_node_forces, force_arrays
-from orbitsim.integrators.ias15_tables import RR, C, D, H
+from orbitsim.integrators.ias15.tables import RR, C, D, H
 from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
 
 #: Largest change of consecutive steps: a step is rejected below 1/4 of the last, grows at most 4x.

@@ -1,7 +1,8 @@
 """IAS15: the adaptive 15th-order Gauss-Radau integrator (Rein & Spiegel 2015), REBOUND's default.
 
-The step itself is in :mod:`orbitsim.integrators.ias15_core`. This module is the scheme's contract
-with the run loop, which for an adaptive scheme reads:
+The package: :mod:`.core`, the step (predictor-corrector, error estimate, step control,
+prediction); :mod:`.tables`, the Gauss-Radau constants; this module, the scheme's record
+(:data:`IAS15`) and its contract with the run loop, which for an adaptive scheme reads:
 
 * the run's grid is its output grid. ``dt`` given to :func:`run` is the sampling interval: the
   "step" ``n`` of a trace is the sample at time ``t0 + n * dt`` (the last one at ``t_end`` when
@@ -28,8 +29,15 @@ import numpy as np
 
 from orbitsim._jit import jit, stop_requested
 from orbitsim.events.kernels import after_step, remember_start
-from orbitsim.integrators.base import IntegratorSpec, is_finite_state, record_sample
-from orbitsim.integrators.ias15_core import (
+from orbitsim.integrators.base import (
+    Integrator,
+    IntegratorSpec,
+    Setting,
+    is_finite_state,
+    record_sample,
+    setting_defaults,
+)
+from orbitsim.integrators.ias15.core import (
     CLOCK_DT,
     CLOCK_DT_LAST_DONE,
     CLOCK_STARTED,
@@ -49,8 +57,8 @@ from orbitsim.integrators.ias15_core import (
     step_try,
 )
 
-__all__ = ["SETTINGS", "SPEC", "counters", "failure_message", "make_work", "run", "run_watched", "step",
-           "validate_settings"]
+__all__ = ["IAS15", "SETTINGS", "SPEC", "carry_over", "clock_time", "counters", "failure_message", "make_work", "run",
+           "run_watched", "step", "validate_settings"]
 
 SPEC = IntegratorSpec(
     name="ias15",
@@ -69,8 +77,15 @@ SPEC = IntegratorSpec(
     adaptive=True,
 )
 
-#: Settings a scenario may give (``integrator: {name: ias15, epsilon: 1e-9}``), with their defaults.
-SETTINGS: dict[str, Any] = {"epsilon": 1e-9, "min_dt": 0.0, "adaptive": True}
+#: Settings a scenario may give (``integrator: {name: ias15, epsilon: 1e-9}``): REBOUND's names and defaults.
+SETTINGS: dict[str, Setting] = {
+    "epsilon": Setting(1e-9, "accuracy of the step control: each step is (5040 epsilon)^(1/7) of the shortest "
+                       "timescale of the motion (Pham, Rein & Spiegel 2024); 0: a constant step, the scenario's dt"),
+    "min_dt": Setting(0.0, "the smallest step the control may choose (0: no floor; a floor lets a run pass a "
+                      "singular encounter, at a loss of accuracy, rather than stop)"),
+    "adaptive": Setting(True, "false: Gauss-Radau at the constant step dt, one step per grid point, like every "
+                        "fixed-dt scheme", (True, False)),
+}
 #: Settings the run loop passes beside them (from the scenario's ``dt`` and ``t_end``).
 RUN_SETTINGS = ("first_dt", "t_end")
 #: Work entries a restored checkpoint does not override: the end of the run (``run --from``
@@ -89,9 +104,9 @@ def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
     unknown = sorted(set(given) - set(SETTINGS) - set(RUN_SETTINGS))
     if unknown:
         raise ValueError(f"ias15 setting {unknown[0]!r} is unknown; valid keys: {', '.join(SETTINGS)}")
-    out = dict(SETTINGS)
+    out = setting_defaults(SETTINGS)
     for key in ("epsilon", "min_dt"):
-        value = given.get(key, SETTINGS[key])
+        value = given.get(key, SETTINGS[key].default)
         if isinstance(value, bool) or not isinstance(value, int | float) or not (math.isfinite(value) and value >= 0):
             raise ValueError(f"ias15 setting {key!r} must be a number >= 0, got {value!r}")
         out[key] = float(value)
@@ -109,7 +124,7 @@ def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
 
 
 def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
-    """The ``work`` tuple of :data:`orbitsim.integrators.ias15_core.WORK_FIELDS` for masses ``m``."""
+    """The ``work`` tuple of :data:`orbitsim.integrators.ias15.core.WORK_FIELDS` for masses ``m``."""
     config = validate_settings(settings)
     n = int(np.asarray(m).shape[0])
     clock = np.zeros(4)
@@ -330,3 +345,19 @@ def _grid_loop(state, force, dt, work, t0, n_done, targets, record, out, watch):
             times[written] = work[W_CLOCK][CLOCK_T]
             written += 1
     return written, n_done, REACHED
+
+
+IAS15 = Integrator(
+    spec=SPEC,
+    step=step,
+    run=run,
+    run_watched=run_watched,
+    settings=SETTINGS,
+    validate_settings=validate_settings,
+    make_work=make_work,
+    carry_over=carry_over,
+    clock_time=clock_time,
+    failure_message=failure_message,
+    counters=counters,
+    run_constants=RUN_CONSTANTS,
+)

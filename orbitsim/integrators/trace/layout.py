@@ -1,12 +1,12 @@
 """The layout of TRACE's ``work`` tuple: its slots, the frames it keeps, its counters and codes.
 
-Shared by the step (:mod:`.trace_core`), its Bulirsch-Stoer sub-step loops
-(:mod:`.trace_substeps`) and the engine front door (:mod:`.trace`).
+Shared by the step (:mod:`.core`), its Bulirsch-Stoer sub-step loops
+(:mod:`.substeps`) and the engine front door (:mod:`orbitsim.integrators.trace`).
 """
 
 from __future__ import annotations
 
-from orbitsim.integrators.trace_switch import STATE_LENGTH
+from orbitsim.integrators.trace.switch import STATE_LENGTH
 
 #: A BS sub-step loop ends when the proposed step falls below this fraction of the outer dt
 #: (REBOUND's guard against a stalled clock).
@@ -16,7 +16,7 @@ MIN_SUBSTEP_FRACTION = 1e-14
 #: of them: every array argument of a jitted call costs an atomic reference-count round trip,
 #: which took ~20% of a step's time before the grouping (measured with perf).
 W_FRAMES, W_ACC, W_COM, W_ROWS, W_BS_REAL, W_BS_INT, W_PREV_X, W_INTERACTS, W_ENC, W_BOOK = range(10)
-#: Collision slots (:mod:`.trace_collide`): the radii (N,), the contacts of the step (``hits``) and
+#: Collision slots (:mod:`.collide`): the radii (N,), the contacts of the step (``hits``) and
 #: the codes and counts (``collide``).
 W_RADII, W_HITS, W_COLLIDE = 10, 11, 12
 N_SLOTS = 13

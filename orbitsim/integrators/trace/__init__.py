@@ -1,4 +1,4 @@
-"""``trace``: the TRACE hybrid integrator in the engine (the step itself is :mod:`.trace_core`).
+"""``trace``: the TRACE hybrid integrator in the engine (the step itself is :mod:`.core`).
 
 A democratic heliocentric Wisdom-Holman map at the scenario's fixed ``dt`` that hands close
 encounters (Hill-radius criterion with look-ahead) and pericentre passages (Pham, Rein & Spiegel
@@ -8,7 +8,7 @@ so the switching is time-reversible. Outputs fall on whole steps, as for every f
 Settings (REBOUND's names and defaults): ``r_crit_hill`` (3), ``peri_crit_eta`` (1) and
 ``peri_mode`` (``full_bs``: a pericentre step integrates the whole system with BS;
 ``partial_bs``: only the Kepler part of every body; ``full_ias15``: the whole system with a fresh
-IAS15, :mod:`.trace_ias15`).
+IAS15, :mod:`.ias15`).
 
 State between steps: only ``pos``, ``vel`` and the time, which TRACE sums as ``t += dt`` (its BS
 sub-steps run on the absolute clock, so the clock's last bits matter). The clock lives in ``work``
@@ -19,8 +19,27 @@ Massless bodies are test particles (REBOUND's ``testparticle_type = 0``) and mus
 massive body.
 
 Collisions (``events.collisions``): :func:`run_watched` arms the step's contact search inside the
-Bulirsch-Stoer sub-steps (:mod:`.trace_collide`); the merges it makes are taken out by
+Bulirsch-Stoer sub-steps (:mod:`.collide`); the merges it makes are taken out by
 :mod:`orbitsim.events.driver` through :func:`take_merges`.
+
+The package: :mod:`.core`, one step (REBOUND's ``step_try`` and its redo); :mod:`.switch`, the
+switching criteria and the encounter bookkeeping; :mod:`.operators`, the democratic heliocentric
+transforms and the jump; :mod:`.kepler`, the Kepler drift; :mod:`.forces`, the three right-hand
+sides; :mod:`.bs`, the Bulirsch-Stoer step, and :mod:`.substeps`, its two sub-step loops;
+:mod:`.ias15`, the ``full_ias15`` pericentre step; :mod:`.collide` and :mod:`.contacts`, contacts
+inside the sub-steps; :mod:`.layout`, the ``work`` tuple; this module, the scheme's record
+(:data:`TRACE`) and its run loops.
+
+What TRACE takes from its neighbours, kept bit for bit with REBOUND 5.2.2 (tests/test_trace_core.py,
+test_trace_engine.py, test_trace_ias15.py, test_trace_collisions.py):
+
+* IAS15: the Gauss-Radau arithmetic of :mod:`orbitsim.integrators.ias15.core` is reused; only the
+  try and its predictor-corrector passes are written again, around REBOUND's basic gravity
+  (:mod:`.ias15` says why);
+* the Kepler solver and the coordinate transforms are REBOUND's own, not
+  :mod:`orbitsim.physics.kepler` and :mod:`orbitsim.physics.coordinates`, which round differently
+  (:mod:`.kepler`, :mod:`.operators`);
+* Bulirsch-Stoer: :mod:`.bs` is orbitsim's only one.
 """
 
 from __future__ import annotations
@@ -33,12 +52,12 @@ import numpy as np
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.bodies import HAND_MASSLESS_KEPLER, HAND_WHOLE_STEP
 from orbitsim.events.kernels import after_step, remember_start
-from orbitsim.integrators import trace_core
-from orbitsim.integrators.base import IntegratorSpec, record_sample
-from orbitsim.integrators.trace_collide import H_MERGED, K_HITS, K_LOST
-from orbitsim.integrators.trace_contacts import arm_collisions, post_contacts
-from orbitsim.integrators.trace_core import PERI_MODES, _trace_step, active_count
-from orbitsim.integrators.trace_layout import (
+from orbitsim.integrators.base import Integrator, IntegratorSpec, Setting, record_sample, setting_defaults
+from orbitsim.integrators.trace.collide import H_MERGED, K_HITS, K_LOST
+from orbitsim.integrators.trace.contacts import arm_collisions, post_contacts
+from orbitsim.integrators.trace.core import PERI_MODES, _trace_step, active_count, counts_of
+from orbitsim.integrators.trace.core import make_work as make_step_work
+from orbitsim.integrators.trace.layout import (
     N_SLOTS,
     STATUS_IAS15_FAILED,
     STATUS_OK,
@@ -49,10 +68,10 @@ from orbitsim.integrators.trace_layout import (
     W_INTERACTS,
     W_RADII,
 )
-from orbitsim.integrators.trace_switch import PARTIAL_BS, ST_CURRENT_C, ST_STATUS
+from orbitsim.integrators.trace.switch import PARTIAL_BS, ST_CURRENT_C, ST_STATUS
 
-__all__ = ["SETTINGS", "SPEC", "carry_over", "check_bodies", "counters", "failure_message", "handoff", "make_work",
-           "run", "run_watched", "step", "take_merges", "validate_settings"]
+__all__ = ["SETTINGS", "SPEC", "TRACE", "carry_over", "check_bodies", "counters", "failure_message", "handoff",
+           "make_work", "run", "run_watched", "step", "take_merges", "validate_settings"]
 
 SPEC = IntegratorSpec(
     name="trace",
@@ -70,10 +89,18 @@ SPEC = IntegratorSpec(
     module=__name__,
 )
 
-#: Settings a scenario may give (``integrator: {name: trace, r_crit_hill: 4}``), with REBOUND's defaults.
-SETTINGS: dict[str, Any] = {"r_crit_hill": 3.0, "peri_crit_eta": 1.0, "peri_mode": "full_bs"}
+#: Settings a scenario may give (``integrator: {name: trace, r_crit_hill: 4}``): REBOUND's names and defaults.
+SETTINGS: dict[str, Setting] = {
+    "r_crit_hill": Setting(3.0, "a pair is an encounter, handed to Bulirsch-Stoer, within this many Hill radii "
+                           "(the larger of the two), looking half a step ahead along the relative velocity"),
+    "peri_crit_eta": Setting(1.0, "a body is near pericentre, and the step handed over, when dt > eta tau (tau: "
+                             "Pham, Rein & Spiegel's 2024 timescale of its orbit about the star)"),
+    "peri_mode": Setting("full_bs", "a pericentre step: full_bs integrates the whole system by Bulirsch-Stoer, "
+                         "partial_bs only the Kepler parts (with the jump), full_ias15 the whole system by a "
+                         "fresh IAS15", tuple(PERI_MODES)),
+}
 
-#: Extra ``work`` entries after :func:`.trace_core.make_work`'s: the clock (t, step of t) and the
+#: Extra ``work`` entries after :func:`.core.make_work`'s: the clock (t, step of t) and the
 #: settings as numbers (r_crit_hill, peri_crit_eta) and codes (peri_mode, number of massive bodies).
 W_CLOCK, W_REAL, W_INT = N_SLOTS, N_SLOTS + 1, N_SLOTS + 2
 
@@ -88,7 +115,7 @@ def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
     unknown = sorted(set(given) - set(SETTINGS))
     if unknown:
         raise ValueError(f"'{unknown[0]}' is not a trace setting (settings: {', '.join(SETTINGS)})")
-    config = {**SETTINGS, **given}
+    config = {**setting_defaults(SETTINGS), **given}
     for key, lowest, strict in (("r_crit_hill", 0.0, True), ("peri_crit_eta", 0.0, False)):
         value = config[key]
         if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value) \
@@ -109,7 +136,7 @@ def check_bodies(m: np.ndarray) -> None:
 
 
 def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
-    """The step's scratch (:func:`.trace_core.make_work`), the clock and the settings.
+    """The step's scratch (:func:`.core.make_work`), the clock and the settings.
 
     Raises ValueError for invalid settings, a central body without mass, or a massless body
     before a massive one.
@@ -120,7 +147,7 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
     clock = np.array([np.nan, -1.0])  # unset: the first call starts it at t0 + n dt
     real = np.array([config["r_crit_hill"], config["peri_crit_eta"]])
     codes = np.array([PERI_MODES[config["peri_mode"]], n_active], dtype=np.int64)
-    return (*trace_core.make_work(masses.shape[0]), clock, real, codes)
+    return (*make_step_work(masses.shape[0]), clock, real, codes)
 
 
 def carry_over(old: tuple[Any, ...], new: tuple[Any, ...]) -> None:
@@ -131,7 +158,7 @@ def carry_over(old: tuple[Any, ...], new: tuple[Any, ...]) -> None:
 
 def counters(work: tuple[Any, ...]) -> dict[str, int]:
     """Steps, steps redone, encounter and FULL_BS sub-steps (written to the trace's attributes)."""
-    return trace_core.counts_of(work)
+    return counts_of(work)
 
 
 def failure_message(work: tuple[Any, ...]) -> str | None:
@@ -150,7 +177,7 @@ def failure_message(work: tuple[Any, ...]) -> str | None:
 
 def take_merges(work: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray]:
     """The merges TRACE made inside the last step (rows of
-    :data:`~.trace_collide.HIT_COLUMNS`) and the radii after them; the table is emptied.
+    :data:`~.collide.HIT_COLUMNS`) and the radii after them; the table is emptied.
 
     A body that merged away is still in the arrays, as a massless husk with radius 0, until the
     caller takes it out (:mod:`orbitsim.events.driver`).
@@ -247,7 +274,7 @@ def _handoff_now(work):
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`).
 
-    TRACE also searches its Bulirsch-Stoer sub-steps for contacts (:mod:`.trace_collide`) when
+    TRACE also searches its Bulirsch-Stoer sub-steps for contacts (:mod:`.collide`) when
     the scenario detects collisions. A step with such a contact that merges or halts returns
     to Python at once, without the end-of-step checks: Python takes the merged bodies out first
     and runs those checks on what is left (:mod:`orbitsim.events.driver`).
@@ -272,3 +299,20 @@ def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch)
                 return written, n_done, False, False
             written += 1
     return written, n_done, True, False
+
+
+TRACE = Integrator(
+    spec=SPEC,
+    step=step,
+    run=run,
+    run_watched=run_watched,
+    settings=SETTINGS,
+    validate_settings=validate_settings,
+    make_work=make_work,
+    carry_over=carry_over,
+    check_bodies=check_bodies,
+    failure_message=failure_message,
+    counters=counters,
+    take_merges=take_merges,
+    handoff=handoff,
+)
