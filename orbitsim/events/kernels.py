@@ -52,7 +52,7 @@ from orbitsim.events.layout import (
     STOP_NONE,
 )
 from orbitsim.events.pairs import close_episodes, scan_pairs
-from orbitsim.integrators.base import record_sample
+from orbitsim.integrators.base import grid_time, record_sample
 
 __all__ = ["after_step", "watched_run"]
 
@@ -68,27 +68,29 @@ def remember_start(watch, pos, vel):
 
 
 @jit_inline
-def watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """A scheme's ``run`` one step at a time, with :func:`after_step` after each.
+def watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """A scheme's ``run`` one step at a time, with :func:`after_step` after each: the one watched
+    loop, inlined into each scheme's cached ``run_watched`` with its ``advance``
+    (:mod:`orbitsim.integrators.base`).
 
-    Same contract as ``run`` (:mod:`orbitsim.integrators.base`) plus a fourth result, True when
-    the call stopped early for the Python side (``watch[9][STOP]`` says why). Taking whole steps
-    one by one gives the same bits as the scheme's own loop (each ``step`` is its ``advance`` of
-    one step, and the fused loops are bit-identical to single steps). A planned sample at the
-    step where Python must act is left to the next call, so it shows the state after the merge
-    or removal.
+    Same contract as ``run`` plus a fourth result, True when the call stopped early for the
+    Python side (``watch[9][STOP]`` says why). Taking whole steps one by one gives the same bits
+    as the scheme's own loop (its fused loops are bit-identical to single steps). A planned sample
+    at the step where Python must act is left to the next call, so it shows the state after the
+    merge or removal.
     """
     pos, vel, acc, m = state
     written = 0
     for k in range(targets.shape[0]):
         while n_done < targets[k]:
             remember_start(watch, pos, vel)
-            step(pos, vel, acc, m, force, dt, work)
-            n_done += 1
+            n_done, ok = advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_done + 1)
+            if not ok:
+                return written, n_done, False, False
             if after_step(watch, pos, vel, m, n_done, t0, dt, None):
                 return written, n_done, True, True
         if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+            if not record_sample(written, n_done, grid_time(work, t0, n_done, dt), pos, vel, m, force, out):
                 return written, n_done, False, False
             written += 1
     return written, n_done, True, False

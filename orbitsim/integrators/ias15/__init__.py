@@ -27,14 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit, stop_requested
+from orbitsim._jit import jit, jit_inline, stop_requested
 from orbitsim.events.kernels import after_step, remember_start
+from orbitsim.forces.hooks import refresh_accelerations
 from orbitsim.integrators.base import (
     Integrator,
     IntegratorSpec,
     Setting,
     is_finite_state,
     record_sample,
+    sample_loop,
     setting_defaults,
 )
 from orbitsim.integrators.ias15.core import (
@@ -312,39 +314,48 @@ def step(pos, vel, acc, m, force, dt, work):
     advance_grid(pos, vel, acc, m, force, work, t, dt, 0, 1, None)
 
 
+@jit_inline
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Grid points ``n_done`` to ``n_to`` (:func:`advance_grid` without events); False on a failure."""
+    n_done, result = advance_grid(pos, vel, acc, m, force, work, t0, dt, n_done, n_to, None)
+    return n_done, result == REACHED
+
+
+@jit_inline
+def sample_time(work, t0, n_done, dt):
+    """The time of a sample at grid point ``n_done``: the clock's (started there, if it is not yet)."""
+    _start_clock(work, _grid_time(work, t0, dt, n_done), dt)
+    return work[W_CLOCK][CLOCK_T]
+
+
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """The grid loop (contract in :mod:`orbitsim.integrators.base`, with ``dt`` the output grid):
-    each sample is recorded at the exact time IAS15's clock reached."""
-    written, n_done, result = _grid_loop(state, force, dt, work, t0, n_done, targets, record, out, None)
-    return written, n_done, result != FAILED
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance` (``dt`` is the output
+    grid): each sample is recorded at the exact time IAS15's clock reached. A forced run's ``acc``
+    is evaluated afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, True)
+    return sample_loop(advance, sample_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run` with the events check after every step IAS15 takes (:mod:`orbitsim.events`);
-    a fourth result, True when the call stopped for the Python side, possibly mid-interval."""
-    written, n_done, result = _grid_loop(state, force, dt, work, t0, n_done, targets, record, out, watch)
-    return written, n_done, result != FAILED, result == ACT
-
-
-@jit
-def _grid_loop(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    a fourth result, True when the call stopped for the Python side, possibly mid-interval. The
+    steps between grid points are IAS15's own, so it watches them inside :func:`advance_grid`
+    rather than through the fixed-step watched loop."""
     pos, vel, acc, m = state
     written = 0
-    times = out[0]
     for k in range(targets.shape[0]):
         if n_done < targets[k]:
             n_done, result = advance_grid(pos, vel, acc, m, force, work, t0, dt, n_done, targets[k], watch)
             if result != REACHED:
-                return written, n_done, result
+                return written, n_done, result != FAILED, result == ACT
         if record[k]:
-            _start_clock(work, _grid_time(work, t0, dt, n_done), dt)
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, FAILED
-            times[written] = work[W_CLOCK][CLOCK_T]
+            if not record_sample(written, n_done, sample_time(work, t0, n_done, dt), pos, vel, m, force, out):
+                return written, n_done, False, False
             written += 1
-    return written, n_done, REACHED
+    return written, n_done, True, False
 
 
 IAS15 = Integrator(

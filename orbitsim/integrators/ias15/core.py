@@ -32,9 +32,9 @@ from __future__ import annotations
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
-from orbitsim.forces.hooks import add_forces, add_node_forces, force_arrays
+from orbitsim.forces.hooks import add_forces, add_node_forces
 from orbitsim.integrators.ias15.tables import RR, C, D, H
-from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
+from orbitsim.physics.gravity import newtonian_accelerations
 
 #: Largest change of consecutive steps: a step is rejected below 1/4 of the last, grows at most 4x.
 SAFETY_FACTOR = 0.25
@@ -310,9 +310,6 @@ def step_try(pos, vel, acc, m, force, work):
     x0, v0, a0, at, csx, csv = work[W_X0], work[W_V0], work[W_A0], work[W_AT], work[W_CSX], work[W_CSV]
     clock, counts = work[W_CLOCK], work[W_COUNTS]
     epsilon, min_dt, adaptive = work[W_EPSILON], work[W_MIN_DT], work[W_ADAPTIVE]
-    G, eps2, slabs, bounds = force[0], force[1], force[2], force[3]
-    extra = force_arrays(force)  # None without forces: the force hooks then vanish at compile time
-    small = pos.shape[1] <= SMALL_N_MAX
     dt = clock[CLOCK_DT]
     n3 = pos.size
     # Flat views: the polynomial arithmetic runs over 3N contiguous components, which vectorises.
@@ -342,11 +339,8 @@ def step_try(pos, vel, acc, m, force, work):
         iterations += 1
         for n in range(1, 8):
             _predict_positions(pf, x0, v0, a0, b, csx, dt, H[n])
-            if small:
-                all_pairs_accelerations(pos, m, G, eps2, at)
-            else:
-                accelerations(pos, m, G, eps2, at, slabs, bounds)
-            add_node_forces(extra, G, pos, m, at, b, csv, v0, a0, dt, H[n])
+            newtonian_accelerations(force, pos, m, at)
+            add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, H[n])  # nothing without forces
             # pf is the corrector's scratch: nothing reads the node's positions after the force
             # evaluation, and every path out of the step rewrites them from x0.
             max_b6, max_a = _correct(n, atf, a0, g, b, csb, pf)
@@ -377,11 +371,8 @@ def step_try(pos, vel, acc, m, force, work):
     _copy7(er, e)
     _copy7(br, b)
     predict_next(clock[CLOCK_DT] / dt_done, e, b, e, b)
-    if small:
-        all_pairs_accelerations(pos, m, G, eps2, acc)
-    else:
-        accelerations(pos, m, G, eps2, acc, slabs, bounds)
-    add_forces(extra, G, pos, vel, m, acc)
+    newtonian_accelerations(force, pos, m, acc)
+    add_forces(force, pos, vel, m, acc)  # nothing without forces
     counts[COUNT_FORCE_EVALS] += 1
     counts[COUNT_ACCEPTED] += 1
     return True

@@ -52,7 +52,15 @@ import numpy as np
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.bodies import HAND_MASSLESS_KEPLER, HAND_WHOLE_STEP
 from orbitsim.events.kernels import after_step, remember_start
-from orbitsim.integrators.base import Integrator, IntegratorSpec, Setting, record_sample, setting_defaults
+from orbitsim.integrators.base import (
+    Integrator,
+    IntegratorSpec,
+    Setting,
+    grid_time,
+    record_sample,
+    sample_loop,
+    setting_defaults,
+)
 from orbitsim.integrators.trace.collide import H_MERGED, K_HITS, K_LOST
 from orbitsim.integrators.trace.contacts import arm_collisions, post_contacts
 from orbitsim.integrators.trace.core import PERI_MODES, _trace_step, active_count, counts_of
@@ -201,8 +209,8 @@ def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
     frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work[:N_SLOTS]
     while n_done < n_to:
         dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
-        _trace_step(pos, vel, m, force[0], dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
-                    force[1], frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
+        _trace_step(pos, vel, m, force.G, dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
+                    force.eps2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
                     collide)
         clock[0] += dt
         n_done += 1
@@ -228,20 +236,20 @@ def step(pos, vel, acc, m, force, dt, work):
     _advance(pos, vel, m, force, dt, work, 0.0, n, n + 1)
 
 
+@jit_inline
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to`` on TRACE's clock; False when a step failed (a
+    Bulirsch-Stoer sub-step produced nan, or a full_ias15 step could not finish)."""
+    n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, n_to)
+    return n_done, work[W_BOOK][ST_STATUS] == STATUS_OK
+
+
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop (contract in :mod:`orbitsim.integrators.base`)."""
-    pos, vel, _acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, targets[k])
-        if work[W_BOOK][ST_STATUS] != STATUS_OK:
-            return written, n_done, False
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`, from the clock of step
+    ``n_done`` (set when the run continues elsewhere)."""
+    _set_clock(work, t0, n_done, dt)
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit_inline
@@ -295,7 +303,7 @@ def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch)
             if after_step(watch, pos, vel, m, n_done, t0, dt, _handoff(work)):
                 return written, n_done, True, True
         if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+            if not record_sample(written, n_done, grid_time(work, t0, n_done, dt), pos, vel, m, force, out):
                 return written, n_done, False, False
             written += 1
     return written, n_done, True, False

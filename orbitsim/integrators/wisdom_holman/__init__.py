@@ -65,10 +65,10 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.forces.hooks import force_arrays
-from orbitsim.integrators.base import Integrator, IntegratorSpec, record_sample
+from orbitsim.forces.hooks import has_velocity_operator, velocity_operator
+from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sample_loop
 from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector
 from orbitsim.integrators.wisdom_holman.operators import (
     DEMOCRATIC_HELIOCENTRIC,
@@ -290,9 +290,8 @@ def _advance_to(target, n_done, m, force, dt, work):
     weights, mu = work[W_WEIGHTS], work[W_MU]
     ipos, acc = work[W_IPOS], work[W_IACC]
     ks, kstage = work[W_KSCRATCH], work[W_KSTAGE]
-    G = force[0]
-    eps2 = force[1]
-    forces = force_arrays(force)  # None without forces (orbitsim.forces.hooks)
+    G = force.G
+    eps2 = force.eps2
     half = 0.5 * dt
     while n_done < target:
         h = half if flags[F_PHASE] == PHASE_SYNCED else dt
@@ -303,7 +302,7 @@ def _advance_to(target, n_done, m, force, dt, work):
             jpos[c, 0] += h * jvel[c, 0]  # the centre of mass drifts
         if heliocentric:
             jump(jpos, jvel, m, half)
-        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc, forces)
+        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc, force)
         if heliocentric:
             jump(jpos, jvel, m, half)
         flags[F_PHASE] = PHASE_LAGGING
@@ -311,37 +310,54 @@ def _advance_to(target, n_done, m, force, dt, work):
     return n_done, KEPLER_OK, 0
 
 
+@jit_inline
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to``, then ``pos``/``vel`` synchronised (on a copy of the
+    mapping state, which goes on unsynchronised); False on a Kepler failure, recorded in ``work``
+    with the state poisoned (:func:`_fail`).
+
+    With velocity-dependent forces each step is ``V(dt/2) S(dt) V(dt/2)``, S a step synchronised
+    at its end: the operators change the inertial velocities, so the map restarts from the
+    inertial state after each (``_ensure_started`` sees the change), as REBOUND's WHFast does in
+    safe mode when an operator modified the particles (REBOUNDx's arrangement for WHFast).
+    """
+    if has_velocity_operator(force):
+        half = 0.5 * dt
+        while n_done < n_to:
+            velocity_operator(force, pos, vel, m, half)
+            step(pos, vel, acc, m, force, dt, work)
+            velocity_operator(force, pos, vel, m, half)
+            n_done += 1
+        return n_done, True
+    if not _ensure_started(pos, vel, m, force, dt, work, n_done):
+        return n_done, False
+    n_done, status, body = _advance_to(n_to, n_done, m, force, dt, work)
+    if status != KEPLER_OK:
+        _fail(pos, vel, work, status, body, n_done + 1)
+        return n_done, False
+    status, body = _synchronize(pos, vel, m, force, dt, work)
+    if status != KEPLER_OK:
+        _fail(pos, vel, work, status, body, n_done)
+        return n_done, False
+    return n_done, True
+
+
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop (contract in :mod:`orbitsim.integrators.base`); synchronises only at outputs."""
-    pos, vel, _acc, m = state
-    if not _ensure_started(pos, vel, m, force, dt, work, n_done):
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`: synchronises only at
+    samples and at the end of the call. The map continues from its internal state, or restarts
+    from ``pos``/``vel`` if they changed, at the start of every call (with velocity-dependent
+    forces, at every step)."""
+    pos, vel, acc, m = state
+    if not has_velocity_operator(force) and not _ensure_started(pos, vel, m, force, dt, work, n_done):
         return 0, n_done, False
-    synced = n_done
-    written = 0
-    last = targets.shape[0] - 1
-    for k in range(targets.shape[0]):
-        n_done, status, body = _advance_to(targets[k], n_done, m, force, dt, work)
-        if status != KEPLER_OK:
-            _fail(pos, vel, work, status, body, n_done + 1)
-            return written, n_done, False
-        if (record[k] or k == last) and synced != n_done:
-            status, body = _synchronize(pos, vel, m, force, dt, work)
-            if status != KEPLER_OK:
-                _fail(pos, vel, work, status, body, n_done)
-                return written, n_done, False
-            synced = n_done
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 _STATE_SLOTS = {

@@ -114,11 +114,11 @@ def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, ks
     status, body = kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    interaction_kick(jpos, jvel, m, G, eps2, -b, JACOBI, weights, mu, ipos, acc)
+    interaction_kick(jpos, jvel, m, G, eps2, -b, JACOBI, weights, mu, ipos, acc, None)
     status, body = kepler_drift_bodies(jpos, jvel, mu, -2.0 * a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    interaction_kick(jpos, jvel, m, G, eps2, b, JACOBI, weights, mu, ipos, acc)
+    interaction_kick(jpos, jvel, m, G, eps2, b, JACOBI, weights, mu, ipos, acc, None)
     return kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
 
 
@@ -135,8 +135,8 @@ def apply_corrector(jpos, jvel, m, force, dt, inv, work):
         return KEPLER_OK, 0
     if work[W_CONFIG][0] != JACOBI:
         raise ValueError("wisdom_holman: symplectic correctors need Jacobi coordinates")
-    G = force[0]
-    eps2 = force[1]
+    G = force.G
+    eps2 = force.eps2
     weights = work[W_WEIGHTS]
     mu = work[W_MU]
     ipos = work[W_IPOS]

@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 
 from orbitsim._jit import jit, stop_requested
-from orbitsim.forces.hooks import add_interaction_forces
+from orbitsim.forces.hooks import add_kick_forces
 from orbitsim.integrators.wisdom_holman.settings import COORDINATE_IDS
 from orbitsim.physics.coordinates import (
     democratic_heliocentric_to_inertial_pos,
@@ -173,12 +173,13 @@ def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
 
 
 @jit
-def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, acc, forces=None):
+def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, acc, force):
     """The kick ``I(h)`` of the mapping state ``jpos``, ``jvel``; ``ipos``, ``acc`` are scratch.
 
-    ``forces``: a forced run's force arrays (:mod:`orbitsim.forces.hooks`), whose position-only
-    forces are added to the inertial accelerations before their Jacobi transform, as REBOUND's
-    WHFast adds ``additional_forces``; None (the default) compiles to the kick without them.
+    ``force``: the run's force context, whose position-only forces are added to the inertial
+    accelerations before their Jacobi transform, as REBOUND's WHFast adds ``additional_forces``
+    (:func:`orbitsim.forces.hooks.add_kick_forces`); a context without forces, or None (the
+    correctors' kicks), compiles to the kick without them.
 
     Jacobi: the inertial positions (:func:`~orbitsim.physics.coordinates.jacobi_to_inertial`),
     the pair accelerations, their Jacobi transform
@@ -200,7 +201,7 @@ def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, 
     else:
         raise ValueError("wisdom_holman: unknown coordinates id")
     interaction_accelerations(ipos, m, G, eps2, coordinates, acc)
-    add_interaction_forces(forces, G, ipos, m, acc)
+    add_kick_forces(force, ipos, m, acc)
     if coordinates == DEMOCRATIC_HELIOCENTRIC:
         for c in range(3):
             for i in range(1, n):
