@@ -8,8 +8,7 @@ from pathlib import Path
 import pytest
 
 from orbitsim.batch.sweep import RUN_ID_CHARS, SweepError, load_sweep
-
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+from orbitsim.data import SWEEPS, bundled_files
 
 
 def write(tmp_path: Path, text: str, name: str = "sweep.yaml") -> Path:
@@ -89,10 +88,12 @@ def test_null_removes_a_key_so_t_end_can_replace_steps(tmp_path):
 
 
 def test_bundled_example_sweeps_load():
-    for path in sorted((CONFIGS / "sweeps").glob("*.yaml")):
+    found = bundled_files(SWEEPS)
+    assert set(found) == {"eccentricity_cases", "integrators_dt", "plummer_seeds"}
+    for path in found.values():
         sweep = load_sweep(path)
         assert sweep.cases and len({c.run_id for c in sweep.cases}) == len(sweep.cases)
-    assert len(load_sweep(CONFIGS / "sweeps" / "plummer_seeds.yaml").cases) == 64
+    assert len(load_sweep("plummer_seeds").cases) == 64  # by name, as `orbitsim batch plummer_seeds`
 
 
 def error_of(tmp_path: Path, text: str) -> str:

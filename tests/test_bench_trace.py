@@ -18,10 +18,9 @@ from click.testing import CliRunner
 
 from orbitsim.bench.matrix import BenchMatrixError, load_matrix, matrix_from_dict
 from orbitsim.bench.runner import quick_matrix
+from orbitsim.data import MATRICES, bundled_dir
 
 rebound = pytest.importorskip("rebound")
-
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 #: A tiny TRACE group: 100 steps of many_encounters (its own dt, 0.034) and of a 20-body disc.
 TRACE = {"name": "tr", "kind": "trace", "system": {7: "many_encounters", 20: "planetesimals"}, "n": [7, 20],
@@ -56,19 +55,20 @@ def test_trace_errors_name_the_key(changes: dict, key: str, reason: str) -> None
     assert str(err.value).startswith(f"m.yaml: {key}: ") and reason in str(err.value), str(err.value)
 
 
-@pytest.mark.parametrize("name", ["bench.yaml", "bench_quick.yaml"])
+@pytest.mark.parametrize("name", ["full", "quick"])
 def test_bundled_matrices_select_the_trace_cases(name: str) -> None:
-    """The issue's two set-ups: REBOUND's many encounters to t = 2000 (bench.yaml) and a disc of
-    ~100 planetesimals, selectable alone with ``--group trace``."""
-    m = load_matrix(CONFIGS / name).select(("trace",))
+    """The issue's two set-ups: REBOUND's many encounters to t = 2000 (the full matrix) and a disc of
+    ~100 planetesimals, selectable alone with ``--group trace``; bundled matrices load by name."""
+    m = load_matrix(name).select(("trace",))
+    assert m.name == name and Path(m.source) == bundled_dir(MATRICES) / f"{name}.yaml"
     assert [g.name for g in m.groups] == ["trace"]
     cases = {(c.system, c.n, c.engine): c for c in m.trace_cases()}
     assert set(cases) == {(s, n, e) for s, n in (("many_encounters", 7), ("planetesimals", 103))
                           for e in ("orbitsim", "rebound")}
-    if name == "bench.yaml":
+    if name == "full":
         assert cases["many_encounters", 7, "orbitsim"].t_end == 2000.0
     with pytest.raises(BenchMatrixError, match=r"groups: no group named 'nope'; groups: .*trace"):
-        load_matrix(CONFIGS / name).select(("nope",))
+        load_matrix(name).select(("nope",))
 
 
 def test_an_unknown_group_exits_2_naming_the_groups(tmp_path: Path) -> None:

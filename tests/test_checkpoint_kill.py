@@ -27,6 +27,7 @@ import h5py
 import numpy as np
 import pytest
 
+from orbitsim.data import SCENARIOS, bundled_dir
 from orbitsim.runner import run_scenario
 from orbitsim.scenario import load_scenario
 
@@ -66,7 +67,7 @@ def wisdom_holman_yaml() -> str:
 def ias15_yaml() -> str:
     """The bundled giants under IAS15 (8000 output intervals of 100 take about 3.6 s); its polynomial,
     compensation terms and clock all live in the checkpoint."""
-    text = (Path(__file__).parents[1] / "configs" / "giants.yaml").read_text(encoding="utf-8")
+    text = (bundled_dir(SCENARIOS) / "giants.yaml").read_text(encoding="utf-8")
     text = text.replace("name: giants", "name: kill_ias15").replace("t_end: 1000", "t_end: 800000")
     return text.replace("  interval: 10\n", "  interval: 100\n  checkpoint: {every: 80}\n")
 
@@ -75,7 +76,7 @@ def trace_yaml() -> str:
     """The bundled many-encounters system under TRACE (~2.5 us a step, encounters, redone steps and
     FULL_BS pericentre steps all along): 1.6 million steps take about 4 s; its summed clock is the
     state a checkpoint must carry beside the bodies."""
-    text = (Path(__file__).parents[1] / "configs" / "many_encounters.yaml").read_text(encoding="utf-8")
+    text = (bundled_dir(SCENARIOS) / "many_encounters.yaml").read_text(encoding="utf-8")
     text = text.replace("name: many_encounters", "name: kill_trace")
     text = text.replace("steps: 58824 ", "steps: 1600000 ")
     return text.replace("  every: 100\n", "  every: 4000\n  checkpoint: {every: 20000}\n")

@@ -1,4 +1,4 @@
-"""The bundled scenarios in configs/: they validate, run, and do what their descriptions say."""
+"""The bundled scenarios in orbitsim/data/scenarios/: they validate, run, and do what their descriptions say."""
 
 from __future__ import annotations
 

@@ -19,6 +19,7 @@ from click.testing import CliRunner
 
 from orbitsim.cli.main import cli
 from orbitsim.convergence.run import fit_order, ladder
+from orbitsim.data import SCENARIOS, bundled_dir
 
 pytest.importorskip("rebound")
 
@@ -101,7 +102,7 @@ def test_ladder_defaults_and_validation() -> None:
 def test_t_end_is_on_the_scenario_clock(tmp_path: Path) -> None:
     """--t-end is absolute like a scenario's t_end: with t_start = 10, --t-end 14.4 measures the same 4.4
     time units as --t-end 4.4 from 0, so the rungs take the same steps and land on the same errors."""
-    text = (Path(__file__).parents[1] / "configs" / "two_body_eccentric.yaml").read_text()
+    text = (bundled_dir(SCENARIOS) / "two_body_eccentric.yaml").read_text()
     later = tmp_path / "later.yaml"
     later.write_text(text + "t_start: 10\n", encoding="utf-8")
     args = ("--integrators", "verlet", "--rebound", "none", "--dts", "0.002,0.001", "-q")

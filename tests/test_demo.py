@@ -79,7 +79,10 @@ def test_make_demo_from_a_clean_clone(tmp_path: Path) -> None:
         pytest.skip("the repository has no commit to clone yet")
     clone = tmp_path / "clone"
     subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("VIRTUAL_ENV", "PYTHONPATH", "ORBITSIM_"))}
+    # Nor the make variables of a suite run by `make test-slow`: with MAKELEVEL set the clone's make
+    # is a sub-make, which adds "make[1]: Leaving directory ..." after the demo's own last line.
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("VIRTUAL_ENV", "PYTHONPATH", "ORBITSIM_", "MAKE", "MFLAGS"))}
     done = subprocess.run(["make", "demo"], cwd=clone, env=env, capture_output=True, text=True, timeout=1800,
                           check=False)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
