@@ -67,7 +67,7 @@ def shim(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if compiler is None or not sys.platform.startswith("linux"):
         pytest.skip("needs a C compiler and LD_PRELOAD (Linux); tests/test_disk_full.py covers a real small disk")
     library = tmp_path_factory.mktemp("shim") / "fault_shim.so"
-    source = Path(__file__).with_name("fault_shim.c")
+    source = Path(__file__).parents[1] / "fault_shim.c"
     subprocess.run([compiler, "-shared", "-fPIC", "-O1", "-o", str(library), str(source), "-ldl"], check=True)
     return library
 
