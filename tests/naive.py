@@ -13,7 +13,7 @@ Everything here is written from the formulas, independently of the engine's kern
 
 The fourth-order weights come from Yoshida's closed form, computed here. The sixth- and
 eighth-order tables are imported from :mod:`orbitsim.integrators.leapfrog`; their identities
-(sum, symmetry, order conditions) are tested on their own in ``tests/test_composition_tables.py``.
+(sum, symmetry, order conditions) are tested on their own in ``tests/integrators/test_composition_tables.py``.
 """
 
 from __future__ import annotations
