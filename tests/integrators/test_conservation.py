@@ -5,24 +5,43 @@
 * Centre of mass: with P conserved, X_com(t) = X_com(0) + P t / M.
 * Angular momentum on the two-body (central-force) problem: drifts and kicks each conserve
   m x cross v exactly when the force is along the line of centres, so every scheme built from
-  whole kicks and drifts conserves it: semi-implicit Euler, Verlet, leapfrog and its compositions.
-  Explicit Euler and RK4 mix old and new states and do not: the negative controls.
+  whole kicks and drifts conserves it: semi-implicit Euler, Verlet, leapfrog and its compositions,
+  and Wisdom-Holman and TRACE, whose drifts are exact Kepler flows. IAS15 is not built from kicks
+  and drifts, but its step control keeps the error of each step below round-off, so it holds L to
+  round-off as well. Explicit Euler and RK4 mix old and new states and do not: the negative controls.
+
+Each property runs over the registered schemes it applies to, and a test holds each list to the
+registry: a newly registered scheme fails there until it is placed in a list or, with a test of
+the reason, outside it. TRACE is outside the momentum test: its close-encounter steps move the
+centre of mass off its straight line, as REBOUND's TRACE does
+(:func:`test_trace_encounters_move_the_centre_of_mass_as_rebounds_trace_does`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import rebound
 
 from orbitsim.integrators.registry import INTEGRATORS
 from orbitsim.simulation import simulate
 
-#: Every scheme whose momentum/CoM conservation this file checks (all of them at present).
-ALL_SCHEMES = (
+#: Every scheme whose momentum/CoM conservation this file checks: all but CENTRE_OF_MASS_DRIFTS.
+MOMENTUM_SCHEMES = (
     "euler", "semi_implicit_euler", "verlet", "leapfrog", "rk4", "leapfrog4", "leapfrog6", "leapfrog8",
+    "wisdom_holman", "ias15",
 )
-#: Schemes that are sequences of exact kicks and drifts: L conserved on a central force.
-ANGULAR_MOMENTUM_SCHEMES = ("semi_implicit_euler", "verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8")
+#: Schemes whose close-encounter steps move the centre of mass off its straight line (checked
+#: against REBOUND's TRACE below): outside the momentum/CoM test.
+CENTRE_OF_MASS_DRIFTS = ("trace",)
+#: Schemes that conserve L on a central force: every one built from exact kicks and drifts
+#: (every symplectic one among them), and IAS15 at round-off. All but MIXED_UPDATES.
+ANGULAR_MOMENTUM_SCHEMES = (
+    "semi_implicit_euler", "verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8",
+    "wisdom_holman", "ias15", "trace",
+)
+#: Negative controls for L: updates that mix old and new states.
+MIXED_UPDATES = ("euler", "rk4")
 
 #: 1000 steps of up to 17 kicks: each adds terms m_i a_i dt that cancel only to a rounding; the
 #: measured drift is 1e-15 .. 5e-15 of sum m |v|, and a missing reaction term would give ~1e-3.
@@ -53,14 +72,8 @@ def two_body_eccentric() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return m, x, v
 
 
-def registry_names() -> list[str]:
-    return [spec.name for spec in INTEGRATORS]
-
-
-@pytest.mark.parametrize("name", registry_names())
+@pytest.mark.parametrize("name", MOMENTUM_SCHEMES)
 def test_momentum_and_centre_of_mass(name: str) -> None:
-    if name not in ALL_SCHEMES:
-        pytest.skip(f"{name}: not in this test's list")
     m, x, v = six_bodies()
     dt, steps = 1e-3, 1000
     result = simulate(m, x, v, integrator=name, dt=dt, steps=steps, every=100, softening=0.05)
@@ -83,10 +96,8 @@ def test_momentum_and_centre_of_mass(name: str) -> None:
     assert np.linalg.norm(com_end - expected) / length < COM_TOL
 
 
-@pytest.mark.parametrize("name", registry_names())
+@pytest.mark.parametrize("name", ANGULAR_MOMENTUM_SCHEMES)
 def test_angular_momentum_on_kepler(name: str) -> None:
-    if name not in ANGULAR_MOMENTUM_SCHEMES:
-        pytest.skip(f"{name}: not in this test's list of L-conserving schemes")
     m, x, v = two_body_eccentric()
     result = simulate(m, x, v, integrator=name, dt=2 * np.pi / 200, steps=1000, every=10)
     L = result.angular_momentum
@@ -96,7 +107,7 @@ def test_angular_momentum_on_kepler(name: str) -> None:
     assert np.linalg.norm(L_end - L[-1]) / np.linalg.norm(L[0]) < 1e-14  # same sum, other order
 
 
-@pytest.mark.parametrize("name", ["euler", "rk4"])
+@pytest.mark.parametrize("name", MIXED_UPDATES)
 def test_angular_momentum_not_conserved_by_mixed_updates(name: str) -> None:
     """Negative control: Euler (dt^2 v x a per step) and RK4 change L by far more than round-off."""
     m, x, v = two_body_eccentric()
@@ -104,3 +115,45 @@ def test_angular_momentum_not_conserved_by_mixed_updates(name: str) -> None:
     L = result.angular_momentum
     # Measured 0.34 (euler) and 7e-7 (rk4).
     assert np.linalg.norm(L[-1] - L[0]) / np.linalg.norm(L[0]) > 1e3 * ANGULAR_MOMENTUM_TOL
+
+
+@pytest.mark.parametrize("name", CENTRE_OF_MASS_DRIFTS)
+def test_trace_encounters_move_the_centre_of_mass_as_rebounds_trace_does(name: str) -> None:
+    """Why TRACE is outside the momentum/CoM test: on the six-body system its close-encounter steps
+    (Bulirsch-Stoer) carry the centre of mass far off X_com(0) + P t / M, and REBOUND's TRACE, from the
+    same state, lands on the same point: the port does what the code it ports does. (This system, with
+    companions of half and a fifth of the central mass, is far from the planetary systems TRACE is for.)"""
+    m, x, v = six_bodies()
+    dt, steps = 1e-3, 1000
+    result = simulate(m, x, v, integrator=name, dt=dt, steps=steps, every=steps, softening=0.05)
+    sim = rebound.Simulation()
+    sim.G, sim.softening, sim.dt, sim.integrator = 1.0, 0.05, dt, name  # the same name in REBOUND
+    for mi, xi, vi in zip(m, x, v, strict=True):
+        sim.add(m=mi, x=xi[0], y=xi[1], z=xi[2], vx=vi[0], vy=vi[1], vz=vi[2])
+    sim.steps(steps)
+    theirs = np.array([[p.x, p.y, p.z] for p in sim.particles])
+
+    total = m.sum()
+    expected = (m[:, None] * x).sum(axis=0) / total + (m[:, None] * v).sum(axis=0) / total * (steps * dt)
+    length = np.sum(m * np.linalg.norm(x, axis=1)) / total
+    ours_off = np.linalg.norm((m[:, None] * result.final_positions).sum(axis=0) / total - expected) / length
+    theirs_off = np.linalg.norm((m[:, None] * theirs).sum(axis=0) / total - expected) / length
+    # Measured 5.8e-3 (with encounters switched off, r_crit_hill = 1e-6, 1.9e-13): far past COM_TOL.
+    assert ours_off > 1e3 * COM_TOL
+    # The two codes take the same steps (tests/integrators/test_trace_core.py holds them to the bit);
+    # the softened force sums round differently, grown through the encounters: measured 1e-13 relative.
+    assert ours_off == pytest.approx(theirs_off, rel=1e-9)
+
+
+def test_each_list_is_what_the_records_say() -> None:
+    """Every registered scheme is in each property's list or, with a test of why, outside it; the
+    records' flags agree with the reasons given (every symplectic scheme is built from exact kicks
+    and drifts and conserves L; the mixed updates are not symplectic)."""
+    by_name = {spec.name: spec for spec in INTEGRATORS}
+    names = set(by_name)
+    assert set(MOMENTUM_SCHEMES) | set(CENTRE_OF_MASS_DRIFTS) == names
+    assert not set(MOMENTUM_SCHEMES) & set(CENTRE_OF_MASS_DRIFTS)
+    assert set(ANGULAR_MOMENTUM_SCHEMES) | set(MIXED_UPDATES) == names
+    assert not set(ANGULAR_MOMENTUM_SCHEMES) & set(MIXED_UPDATES)
+    assert {name for name, spec in by_name.items() if spec.symplectic} <= set(ANGULAR_MOMENTUM_SCHEMES)
+    assert not any(by_name[name].symplectic for name in MIXED_UPDATES)
