@@ -23,7 +23,7 @@ THREE_BODIES = [
 ]
 #: Fixed-dt schemes whose state is x and v alone: a run restarted from a sample takes the same steps.
 #: wisdom_holman continues bit for bit through its own coordinates, which the export writes
-#: (tests/test_export_wh_state.py).
+#: (tests/io/test_export_wh_state.py).
 FIXED_DT = ["leapfrog", "leapfrog4", "verlet", "rk4", "semi_implicit_euler"]
 
 

@@ -45,5 +45,5 @@ def test_the_trace_pair_states_encounter_chaos_and_its_twin_tolerance(trace_comp
 
 
 def test_docs_name_the_sentence() -> None:
-    words = (Path(__file__).resolve().parents[1] / "docs" / "compare.md").read_text().split()
+    words = (Path(__file__).resolve().parents[2] / "docs" / "compare.md").read_text().split()
     assert ENCOUNTER_CHAOS in " ".join(w for w in words if w != ">")  # the quoted sentence, line breaks aside

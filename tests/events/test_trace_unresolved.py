@@ -17,7 +17,7 @@ from orbitsim.events.log import Event, unresolved_fix
 from orbitsim.scenario import scenario_from_dict
 from orbitsim.scenario_simulation import scenario_simulation
 
-#: REBOUND's test_simple_collision state (tests/test_trace_collisions.py) without radii: p2
+#: REBOUND's test_simple_collision state (tests/integrators/test_trace_collisions.py) without radii: p2
 #: (m = 1e-8) passes ~0.001 from p1 (m = 1e-5) at t = 0.56, inside p1's Hill sphere, closer than
 #: p1 pulls harder than the star (0.0014), where a step of 0.01 is far too long (tau ~ 2e-4).
 ENCOUNTER = [{"name": "star", "m": 1.0, "x": [0.0, 0.0, 0.0], "v": [0.0, 0.0, 0.0]},

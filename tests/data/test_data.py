@@ -15,7 +15,7 @@ from orbitsim.cli.main import cli
 from orbitsim.data import KINDS, MATRICES, SCENARIOS, SWEEPS, bundled_dir, bundled_files, data_dir, locate
 from orbitsim.scenario import bundled_scenarios, load_scenario
 
-PACKAGE_DATA = Path(__file__).resolve().parents[1] / "orbitsim" / "data"
+PACKAGE_DATA = Path(__file__).resolve().parents[2] / "orbitsim" / "data"
 
 
 def test_the_bundled_files_are_the_package_s_own() -> None:

@@ -5,7 +5,7 @@ consistent when sum w = 1, symmetric when the weights are a palindrome, and of o
 odd power sums vanish: sum w^k = 0 for k = 3, 5, ..., p - 1 (the coefficients of the leapfrog's
 own error terms h^3, h^5, ... in the composed map). These are necessary conditions; the full set
 (with nested commutators) is checked indirectly by the local order on a harmonic oscillator below
-and by the convergence test on the Kepler problem (tests/test_convergence.py).
+and by the convergence test on the Kepler problem (tests/integrators/test_convergence.py).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 ``unshare --user --map-root-user --mount`` gives an unprivileged process its own mount table, in
 which it may mount a tmpfs; the mount vanishes with the process. Where the kernel does not allow
-that (user namespaces disabled), the tests are skipped, and tests/test_write_faults.py still
+that (user namespaces disabled), the tests are skipped, and tests/io/test_write_faults.py still
 covers the same promises with injected ENOSPC. Before these fixes, the run below ended in a
 segfault inside libhdf5 (exit code 139) with 37 tracebacks and a 2 MiB ``.tmp`` left behind,
 and under ``orbitsim batch`` it killed the workers and no summary was written.

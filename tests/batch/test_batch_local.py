@@ -376,7 +376,7 @@ def test_workers_ignore_ctrl_c_even_after_a_restart(client):
 def test_the_docs_way_of_loading_a_summary_runs(client, tmp_path, capsys):
     # docs/batch.md used to suggest pandas, which orbitsim does not install (issue 27, item 8): its
     # example now uses csv and h5py, and this runs it, as written, on a real sweep.
-    text = (Path(__file__).parents[1] / "docs" / "batch.md").read_text(encoding="utf-8")
+    text = (Path(__file__).parents[2] / "docs" / "batch.md").read_text(encoding="utf-8")
     block = text.split("<!-- docs-example: summary", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
     out = tmp_path / "out"
     run_sweep(load_sweep(grid_sweep(tmp_path, 2)), out, client=client)

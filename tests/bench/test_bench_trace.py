@@ -1,6 +1,6 @@
 """The ``trace`` kind of the benchmark matrix: orbitsim's trace beside REBOUND's TRACE.
 
-As in tests/test_bench.py, nothing here asserts a time: what is tested is the bookkeeping. The
+As in tests/bench/test_bench.py, nothing here asserts a time: what is tested is the bookkeeping. The
 group is parsed with per-N values and its errors name the key; ``--group`` selects it alone; a
 tiny run records both engines over the same steps, orbitsim's encounter counters and whether the
 final states agree; the targets table has the two TRACE rows, judged only where encounters happened.

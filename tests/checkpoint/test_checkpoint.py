@@ -229,7 +229,7 @@ def test_refuses_another_integrator_or_scenario(tmp_path: Path) -> None:
         prepare_resume(tmp_path / "out.h5", scenario=sc.with_overrides(dt=0.02))
     assert prepare_resume(tmp_path / "out.h5", scenario=sc, integrator="kdk").start is not None  # an alias
     run_scenario(sc, tmp_path / "done.h5")
-    # Extending with another scheme is allowed (tests/test_run_from_switch.py), but not to an adaptive one.
+    # Extending with another scheme is allowed (tests/checkpoint/test_run_from_switch.py), but not to an adaptive one.
     assert prepare_extension(tmp_path / "done.h5", steps=10, integrator="leapfrog4").start.rebuild
     with pytest.raises(CheckpointError, match="cannot switch to or from it"):
         prepare_extension(tmp_path / "done.h5", t_end=100.0, integrator="ias15")

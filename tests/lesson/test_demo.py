@@ -15,7 +15,7 @@ from orbitsim.cli.main import cli
 
 pytest.importorskip("rebound")
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")

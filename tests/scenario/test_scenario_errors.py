@@ -40,7 +40,7 @@ CASES = [
     ("negative_mass", HEAD + "bodies:\n" + STAR + "  - {name: b, m: -1, x: [1, 0, 0], v: [0, 0, 0]}\n",
      "bodies[1].m", "mass must be >= 0, got -1"),
     ("dt_zero", "integrator: verlet\ndt: 0\nsteps: 10\n" + BODIES, "dt", "must be non-zero"),
-    # dt < 0 runs backwards (tests/test_backward.py); its end time must then be negative too.
+    # dt < 0 runs backwards (tests/scenario/test_backward.py); its end time must then be negative too.
     ("dt_negative_t_end_positive", "integrator: verlet\ndt: -0.1\nt_end: 1\n" + BODIES, "t_end", "must be < 0"),
     ("dt_negative_adaptive", "integrator: ias15\ndt: -0.1\nt_end: 1\n" + BODIES, "dt", "cannot run backwards"),
     ("steps_and_t_end", HEAD + "t_end: 1.0\n" + BODIES, "t_end", "only one of steps or t_end"),

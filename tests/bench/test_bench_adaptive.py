@@ -1,6 +1,6 @@
 """The ``adaptive`` kind of the benchmark matrix: IAS15 beside REBOUND's IAS15 over one span.
 
-As in tests/test_bench.py, nothing here asserts a time: what is tested is the bookkeeping. The
+As in tests/bench/test_bench.py, nothing here asserts a time: what is tested is the bookkeeping. The
 group is parsed with per-N values and its errors name the key; a run records both engines'
 accepted steps over the same span; the targets table has the two IAS15 rows; a fixed-step group's
 ``integrators: all`` leaves IAS15 out.

@@ -14,7 +14,7 @@ the second, one in the middle, the last write, the fsync and the final rename. E
   the run can be resumed, and then ``orbitsim resume`` finishes it into a trace bit-identical to an
   undisturbed run's.
 
-Without a C compiler (or LD_PRELOAD: not Linux) the test is skipped; tests/test_disk_full.py covers
+Without a C compiler (or LD_PRELOAD: not Linux) the test is skipped; tests/io/test_disk_full.py covers
 the same promise on a real, small filesystem.
 """
 
@@ -65,9 +65,9 @@ def shim(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The preloadable fault injector, compiled for this machine."""
     compiler = shutil.which("gcc") or shutil.which("cc")
     if compiler is None or not sys.platform.startswith("linux"):
-        pytest.skip("needs a C compiler and LD_PRELOAD (Linux); tests/test_disk_full.py covers a real small disk")
+        pytest.skip("needs a C compiler and LD_PRELOAD (Linux); tests/io/test_disk_full.py covers a real small disk")
     library = tmp_path_factory.mktemp("shim") / "fault_shim.so"
-    source = Path(__file__).with_name("fault_shim.c")
+    source = Path(__file__).parents[1] / "fault_shim.c"
     subprocess.run([compiler, "-shared", "-fPIC", "-O1", "-o", str(library), str(source), "-ldl"], check=True)
     return library
 

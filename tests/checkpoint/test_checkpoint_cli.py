@@ -130,7 +130,7 @@ def test_run_from_refusals(tiny: Path, tmp_path: Path) -> None:
     assert code == 2 and "settings are fixed: drop --every" in err
     code, _, err = invoke("run", "--from", out)
     assert code == 2 and "--steps N (more steps) or --t-end T" in err
-    # Another integrator is allowed now (tests/test_run_from_switch.py), but not an adaptive one.
+    # Another integrator is allowed now (tests/checkpoint/test_run_from_switch.py), but not an adaptive one.
     code, _, err = invoke("run", "--from", out, "--steps", "10", "--integrator", "ias15")
     assert code == 2 and "cannot switch to or from it" in one_error_line(err)
     code, _, err = invoke("run", "--from", str(tiny), "--steps", "10")
