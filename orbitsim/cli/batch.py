@@ -61,7 +61,8 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
     from pathlib import Path
 
     from orbitsim.batch.cluster import ClusterError
-    from orbitsim.batch.driver import SweepInterrupted, interrupt_once, run_sweep
+    from orbitsim.batch.driver import SweepInterrupted, run_sweep
+    from orbitsim.batch.signals import interrupt_once
     from orbitsim.batch.summary import format_table
     from orbitsim.batch.sweep import SweepError, load_sweep
 

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from orbitsim.batch.cluster import plan_local
-from orbitsim.batch.driver import interrupt_once
 from orbitsim.batch.overrides import OverrideError, apply_override, path_components, paths_overlap
+from orbitsim.batch.signals import interrupt_once
 from orbitsim.batch.summary import column_names, format_table, write_csv, write_h5
 
 
@@ -150,7 +150,7 @@ def test_interrupt_once_raises_on_the_first_ctrl_c_and_ignores_the_next_until_th
                     or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL, reason="needs the default handlers")
 def test_interrupt_once_takes_sigterm_like_ctrl_c_and_says_which_it_was():
     # SIGTERM (timeout, Slurm) used to kill the driver outright: no summary, stale locks (issue 27, item 11).
-    from orbitsim.batch.driver import SweepSignal
+    from orbitsim.batch.signals import SweepSignal
 
     caught = []
     with interrupt_once():

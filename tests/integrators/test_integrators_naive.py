@@ -71,7 +71,7 @@ def test_scheme_matches_naive_reference(name: str) -> None:
     result = simulate(m, x0, v0, integrator=name, dt=DT, steps=STEPS, every=STEPS, G=G, softening=EPS)
     x_ref, v_ref = naive.run(name, x0, v0, m, G, EPS, DT, STEPS)
     # The engine's force sum is reassociated and uses Newton's third law (~4e-15 relative per
-    # evaluation, DESIGN.md section 4); a few steps keep that well below 1e-13.
+    # evaluation, docs/design.md#fast-kernels); a few steps keep that well below 1e-13.
     tol = 1e-13
     x_err = np.max(np.abs(result.final_positions - x_ref)) / np.max(np.abs(x_ref))
     v_err = np.max(np.abs(result.final_velocities - v_ref)) / np.max(np.abs(v_ref))

@@ -21,7 +21,7 @@ from orbitsim.physics.gravity import (
 from orbitsim.simulation import simulate
 
 #: The force sum is reassociated (vectorised) and pairs are computed once; against a plain double
-#: loop that is a relative change of ~4e-15 (DESIGN.md section 4), well inside 1e-12.
+#: loop that is a relative change of ~4e-15 (docs/design.md#fast-kernels), well inside 1e-12.
 NAIVE_TOL = 1e-12
 
 
