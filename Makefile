@@ -31,7 +31,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check orbitsim tests benchmarks
 
 bench: $(STAMP)
-	$(BIN)/orbitsim bench configs/bench.yaml -o benchmarks/results
+	$(BIN)/orbitsim bench full -o benchmarks/results
 
 clean:
 	rm -rf $(VENV) demo-report .pytest_cache

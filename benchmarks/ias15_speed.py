@@ -7,7 +7,7 @@ Usage::
 Groups (each one's cases timed round-robin, ``--repeats`` rounds; every ratio is the median over
 rounds of the ratio within a round, as in ``orbitsim.bench.stats.paired_median``):
 
-* ``giants_api``: ``configs/giants.yaml`` (Sun and the four giants, G = 1, epsilon = 1e-9, first
+* ``giants_api``: the bundled ``giants`` (Sun and the four giants, G = 1, epsilon = 1e-9, first
   trial step 0.01) to t = 1e4, a sample every 100 time units. orbitsim through
   ``Simulation.chunks`` (no positions recorded; the energy of each of the 101 samples is computed,
   as every run does); REBOUND ``sim.integrate(t, exact_finish_time=1)`` at each sample time. The
@@ -23,7 +23,7 @@ rounds of the ratio within a round, as in ``orbitsim.bench.stats.paired_median``
   it is the steadier of the two because the import jitter is outside it), and the whole process's
   wall time. The first is the headline; the second shows the whole CLI path agrees. REBOUND runs
   the same span in this process in the same round.
-* ``plummer_ias15``: ``configs/plummer_1k.yaml`` (N = 1000, G = 1, softening 0.01, given to
+* ``plummer_ias15``: the bundled ``plummer_1k`` (N = 1000, G = 1, softening 0.01, given to
   REBOUND as ``sim.softening``, the same Plummer form), IAS15 from t = 0 to 0.025 (about 30
   steps, first trial step 0.01 as the scenario's dt), orbitsim on 1 and on 2 threads (its blocked
   parallel force kernel either way), REBOUND ``gravity = "basic"`` (serial).
@@ -53,9 +53,11 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.data import SCENARIOS, bundled_dir
+
 ROOT = Path(__file__).resolve().parent.parent
-GIANTS = ROOT / "configs" / "giants.yaml"
-PLUMMER = ROOT / "configs" / "plummer_1k.yaml"
+GIANTS = bundled_dir(SCENARIOS) / "giants.yaml"
+PLUMMER = bundled_dir(SCENARIOS) / "plummer_1k.yaml"
 EPSILON = 1e-9
 API_T_END, CLI_T_END, CLI_T_SHORT, INTERVAL = 1e4, 1e5, 1.0, 100.0
 PLUMMER_T_END, VERLET_STEPS = 0.025, 100

@@ -1,4 +1,4 @@
-"""Run the recorded benchmark suite: configs/bench.yaml into benchmarks/results.
+"""Run the recorded benchmark suite: the bundled matrix ``full`` into benchmarks/results.
 
     .venv/bin/python benchmarks/run_suite.py                  # one run (what `make bench` does)
     .venv/bin/python benchmarks/run_suite.py --runs 3 --quiet-load 1.0
@@ -73,7 +73,7 @@ def update_readme(results_md: str, readme: Path = README) -> bool:
 def main(argv: list[str] | None = None) -> int:
     """Run the suite; returns the process exit status."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--matrix", default=str(ROOT / "configs" / "bench.yaml"))
+    parser.add_argument("--matrix", default="full", help="a matrix file or a bundled name")
     parser.add_argument("-o", "--outdir", default=str(ROOT / "benchmarks" / "results"))
     parser.add_argument("--runs", type=int, default=1)
     parser.add_argument("--threads", type=int, default=None)

@@ -56,7 +56,11 @@ class Browser:
             if pages or time.monotonic() > deadline:
                 break
             time.sleep(0.1)
-        self.ws = websocket.create_connection(pages[0]["webSocketDebuggerUrl"], timeout=STARTUP_S)
+        # No Origin header: Chromium refuses a DevTools websocket whose Origin it does not allow ("403
+        # ... Use the command line flag --remote-allow-origins"); which origins pass depends on its
+        # version, while a client that sends none (as Puppeteer does) is always let in.
+        self.ws = websocket.create_connection(pages[0]["webSocketDebuggerUrl"], timeout=STARTUP_S,
+                                              suppress_origin=True)
         self.ids = itertools.count(1)
 
     def _port(self) -> int:

@@ -5,7 +5,9 @@ Everything here is written from the formulas, independently of the engine's kern
 * :func:`accelerations` is the O(N^2) double loop over ordered pairs (no Newton's-third-law trick,
   no blocks, no reassociation), so agreement with the engine tests the engine's pair bookkeeping;
 * :func:`energy` is T + U with the Plummer-softened potential U = -G m_i m_j / sqrt(r^2 + eps^2);
-* ``step_<scheme>`` takes one step of each registered scheme in its textbook form; the
+* ``step_<scheme>`` takes one step of each registered fixed-step scheme built from kicks, drifts
+  or RK stages, in its textbook form (REBOUND's schemes, Wisdom-Holman, IAS15 and TRACE, have
+  REBOUND as their reference: tests/integrators/test_integrators_naive.py names the tests); the
   compositions are written as *unmerged* sequences of whole DKD leapfrog substeps (the engine
   merges neighbouring drifts), so they also test the merging;
 * ``sample_steps_every`` / ``sample_steps_interval`` build a whole sampling plan in one array,
@@ -13,7 +15,7 @@ Everything here is written from the formulas, independently of the engine's kern
 
 The fourth-order weights come from Yoshida's closed form, computed here. The sixth- and
 eighth-order tables are imported from :mod:`orbitsim.integrators.leapfrog`; their identities
-(sum, symmetry, order conditions) are tested on their own in ``tests/test_composition_tables.py``.
+(sum, symmetry, order conditions) are tested on their own in ``tests/integrators/test_composition_tables.py``.
 """
 
 from __future__ import annotations

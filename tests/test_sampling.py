@@ -25,7 +25,7 @@ from orbitsim.simulation import Simulation
 EVERY_CASES = [(10, 3), (9, 3), (0, 5), (1, 1), (5, 1), (100, 100), (100, 101), (1000, 7), (3 * BLOCK_SAMPLES + 5, 1),
                (2 * BLOCK_SAMPLES, 2)]
 INTERVAL_CASES = [
-    # those of tests/test_registry.py, whose expected steps are derived there from the definition
+    # those of tests/integrators/test_registry.py, whose expected steps are derived there from the definition
     (1000, 0.1, 0.3), (1000, 0.1, 0.7), (997, 0.01, 0.0333), (500, 0.3, 0.1), (100, 1e-3, 0.01), (10, 0.7, 7.0),
     (0, 0.1, 0.3),  # no step at all: only step 0
     (10, 0.3, 1.0),  # the end time is not a sample time

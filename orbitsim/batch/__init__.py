@@ -12,7 +12,7 @@ Modules, in the order a sweep flows through them:
 Typical use::
 
     from orbitsim.batch import load_sweep, run_sweep
-    outcome = run_sweep(load_sweep("configs/sweeps/integrators_dt.yaml"), "out/integrators_dt")
+    outcome = run_sweep(load_sweep("integrators_dt"), "out/integrators_dt")
     outcome.counts            # Counter({'complete': 40})
 
 Importing this package imports neither numba nor dask.

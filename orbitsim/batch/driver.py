@@ -11,21 +11,19 @@ Reliability comes from Dask and from content addressing, not from bookkeeping of
 * Rows are placed by case index, never by completion order, and every number in a row is read
   from the trace, so the summary does not depend on how many workers ran it or in which order.
 * Ctrl-C, or SIGTERM (what ``timeout`` and Slurm send), stops the sweep: what is queued is cancelled,
-  the cluster is shut down (a second signal does not break that), and only then is the summary
-  written, reading back from disk every case that has no row yet, so a run that completed during
-  the shutdown is ``complete``, not ``not run``. The lock and ``.tmp`` files of the runs the
-  shutdown killed are removed (their holders are gone), and so are any a killed sweep left for a
-  rerun to find (:func:`clear_abandoned`).
+  the cluster is shut down (a second signal does not break that: :mod:`orbitsim.batch.signals`), and
+  only then is the summary written, reading back from disk every case that has no row yet, so a run
+  that completed during the shutdown is ``complete``, not ``not run``. The lock and ``.tmp`` files of
+  the runs the shutdown killed are removed (their holders are gone), and so are any a killed sweep
+  left for a rerun to find (:func:`clear_abandoned`).
 * With ``skip_invalid`` a sweep's invalid cases are ``invalid`` rows (no run id, no trace) and the
   valid ones run.
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import signal
-import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -33,15 +31,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from orbitsim.batch.signals import interrupt_once
 from orbitsim.batch.summary import write_csv, write_h5
 from orbitsim.batch.sweep import Case, InvalidCase, Sweep
 from orbitsim.batch.task import failed_result, run_case, trace_result, warm_up
 
-__all__ = ["TASK_RETRIES", "SweepInterrupted", "SweepOutcome", "SweepSignal", "clear_abandoned", "completed_result",
-           "interrupt_once", "run_sweep", "trace_path_for"]
-
-#: The signals that stop a sweep: Ctrl-C, and SIGTERM (``timeout``, Slurm's ``scancel`` or time limit).
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+__all__ = ["TASK_RETRIES", "SweepInterrupted", "SweepOutcome", "clear_abandoned", "completed_result", "run_sweep",
+           "trace_path_for"]
 
 #: Extra attempts Dask makes when the task function itself raises (e.g. a worker that cannot
 #: import orbitsim). Run failures never raise (they are returned as rows), and a *killed* worker's
@@ -81,49 +77,6 @@ class SweepInterrupted(KeyboardInterrupt):
     def __init__(self, outcome: SweepOutcome) -> None:
         super().__init__("the sweep was interrupted")
         self.outcome = outcome
-
-
-class SweepSignal(KeyboardInterrupt):
-    """SIGINT or SIGTERM stopped the sweep (``signum`` says which); handled like Ctrl-C."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-@contextlib.contextmanager
-def interrupt_once() -> Iterator[None]:
-    """Within the block the first Ctrl-C or SIGTERM raises :class:`SweepSignal` (a KeyboardInterrupt)
-    and later ones are ignored.
-
-    What follows the first signal is the sweep's shutdown: cancel, close the cluster, write the
-    summary. A second Ctrl-C used to break it halfway (the cluster left for the interpreter's exit
-    to close, with tracebacks; no summary), and SIGTERM, which ``timeout`` and Slurm send, killed the
-    driver outright: no summary, the runs' lock files left behind, the cluster's semaphores leaked.
-    The shutdown is bounded by Dask's own timeouts (a worker that does not stop within seconds is
-    killed), so ignoring the later signals costs a few seconds at most. Only in the main thread,
-    and only over Python's default handlers: a caller's handler is left alone. The previous
-    handlers are back when the block ends.
-    """
-    defaults = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
-    if threading.current_thread() is not threading.main_thread() or \
-            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        yield
-        return
-    ours = [signum for signum in STOP_SIGNALS if signal.getsignal(signum) is defaults[signum]]
-
-    def first(signum: int, frame: Any) -> None:
-        for each in ours:
-            signal.signal(each, signal.SIG_IGN)
-        raise SweepSignal(signum)
-
-    for signum in ours:
-        signal.signal(signum, first)
-    try:
-        yield
-    finally:
-        for signum in ours:
-            signal.signal(signum, defaults[signum])
 
 
 def clear_abandoned(outdir: Path, cases: list[Case]) -> int:

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from orbitsim.batch.overrides import OverrideError, apply_override, path_components, paths_overlap
+from orbitsim.data import SWEEPS, locate
 
 __all__ = ["RUN_ID_CHARS", "Case", "InvalidCase", "Sweep", "SweepError", "load_sweep", "sweep_from_dict"]
 
@@ -118,7 +119,10 @@ class Sweep:
 
 
 def load_sweep(path: str | Path, *, skip_invalid: bool = False) -> Sweep:
-    """Read, validate and expand the sweep file at ``path``.
+    """Read, validate and expand the sweep file at ``path``, or the bundled sweep of that name.
+
+    A bundled sweep is named by its stem (``"integrators_dt"``; ``orbitsim list sweeps``); a file
+    of that name in the working directory wins.
 
     The file is read by the scenario loader's YAML reader, so numbers such as ``1e-3`` mean the
     same in a sweep as in a scenario, duplicate keys are errors, and errors carry line numbers.
@@ -133,9 +137,13 @@ def load_sweep(path: str | Path, *, skip_invalid: bool = False) -> Sweep:
     from orbitsim.scenario import ScenarioError
     from orbitsim.scenario.yamlio import parse_yaml
 
-    label = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        found = locate(SWEEPS, path)
+    except LookupError as err:
+        raise SweepError(str(path), "", str(err)) from None
+    label = str(path) if found == Path(path) else str(found)
+    try:
+        text = found.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
         raise SweepError(label, "", f"cannot read sweep file ({getattr(err, 'strerror', None) or err})") from None
     try:

@@ -3,7 +3,7 @@ the validated :class:`Group` every kind's reader and runner takes (here, below t
 so that they need not import the matrix module that dispatches to them).
 
 Every failure raises :class:`BenchMatrixError`, whose ``str()`` is one line naming the file and
-the key path, e.g. ``configs/bench.yaml: groups[1].n[2]: expected an integer >= 2, got 'many'``.
+the key path, e.g. ``my_bench.yaml: groups[1].n[2]: expected an integer >= 2, got 'many'``.
 """
 
 from __future__ import annotations

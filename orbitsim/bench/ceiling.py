@@ -10,7 +10,7 @@ times exactly that work in a vectorised loop over an L1-resident array, on one t
   counts it twice (N(N-1) per evaluation);
 * the ceiling for T threads is T times the per-core figure (the cores share no such unit).
 
-DESIGN.md section 4 quotes 1.15e9/s per core for the full loop on the reference machine.
+docs/design.md#fast-kernels quotes 1.15e9/s per core for the full loop on the development machine.
 """
 
 from __future__ import annotations

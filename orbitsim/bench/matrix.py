@@ -50,7 +50,7 @@ adaptive scheme, so ``integrators: all`` there leaves it out and naming it is an
 and records whether the final states agree to the bit.
 
 Every error is one line naming the file and the key, e.g.
-``configs/bench.yaml: groups[1].n[2]: expected an integer >= 1, got 'many'``.
+``my_bench.yaml: groups[1].n[2]: expected an integer >= 1, got 'many'``.
 """
 
 from __future__ import annotations
@@ -65,6 +65,7 @@ from typing import Any
 from orbitsim.bench._adaptive_fields import ADAPTIVE_KEYS, AdaptiveCase, expand_adaptive, read_adaptive
 from orbitsim.bench._fields import GENERATED_SYSTEMS, BenchMatrixError, Group, Reader
 from orbitsim.bench._trace_fields import TRACE_KEYS, TraceCase, expand_trace, read_trace
+from orbitsim.data import MATRICES, locate
 
 __all__ = [
     "GENERATED_SYSTEMS",
@@ -174,12 +175,19 @@ class BenchMatrix:
 
 
 def load_matrix(path: str | Path) -> BenchMatrix:
-    """Read and validate a matrix file; raises :class:`BenchMatrixError` (one line) on any problem."""
+    """Read and validate a matrix file, or the bundled matrix of that name (``"full"``, ``"quick"``).
+
+    Raises :class:`BenchMatrixError` (one line) on any problem.
+    """
     import yaml
 
-    source = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        found = locate(MATRICES, path)
+    except LookupError as err:
+        raise BenchMatrixError(str(path), "", str(err)) from None
+    source = str(path) if found == Path(path) else str(found)
+    try:
+        text = found.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
         raise BenchMatrixError(source, "", f"cannot read the file ({err.__class__.__name__}: {err})") from None
     try:
@@ -188,7 +196,7 @@ def load_matrix(path: str | Path) -> BenchMatrix:
         mark = getattr(err, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark is not None else ""
         raise BenchMatrixError(source, "", f"not valid YAML{where}") from None
-    return matrix_from_dict(doc, source=source, default_name=Path(path).stem)
+    return matrix_from_dict(doc, source=source, default_name=found.stem)
 
 
 def matrix_from_dict(doc: Any, *, source: str = "<inline>", default_name: str = "bench") -> BenchMatrix:

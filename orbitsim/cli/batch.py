@@ -12,7 +12,7 @@ from orbitsim.cli.errors import EXIT_FAILURE, EXIT_USAGE, fail, reports_errors
 
 
 @click.command("batch")
-@click.argument("sweep_file", type=click.Path(dir_okay=False), metavar="SWEEP.yaml")
+@click.argument("sweep_file", type=click.Path(dir_okay=False), metavar="SWEEP")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default=None,
               help="Output directory (default: out/<sweep name>). Must be shared with the workers.")
 @click.option("--scheduler", metavar="ADDRESS", default=None,
@@ -36,6 +36,7 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
     """Run every case of a sweep and write OUTDIR/runs/<run-id>.h5 per run,
     OUTDIR/summary.csv and OUTDIR/summary.h5.
 
+    SWEEP is a sweep file or the name of a bundled sweep (`orbitsim list sweeps`).
     A sweep file names a base scenario and either a `grid` of values for dotted
     key paths (every combination runs) or a list of `cases`. Running the same
     command again finishes an interrupted sweep. See docs/batch.md.
@@ -53,14 +54,15 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
 
     \b
     Examples:
-      orbitsim batch configs/sweeps/integrators_dt.yaml -o out/int_dt
-      orbitsim batch configs/sweeps/plummer_seeds.yaml --workers 2
+      orbitsim batch integrators_dt -o out/int_dt
+      orbitsim batch plummer_seeds --workers 2
       orbitsim batch sweep.yaml --scheduler tcp://127.0.0.1:8786
     """
     from pathlib import Path
 
     from orbitsim.batch.cluster import ClusterError
-    from orbitsim.batch.driver import SweepInterrupted, interrupt_once, run_sweep
+    from orbitsim.batch.driver import SweepInterrupted, run_sweep
+    from orbitsim.batch.signals import interrupt_once
     from orbitsim.batch.summary import format_table
     from orbitsim.batch.sweep import SweepError, load_sweep
 

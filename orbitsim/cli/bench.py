@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import click
 
 from orbitsim.cli.errors import fail, reports_errors
 from orbitsim.cli.options import threads_option
 
-#: Bundled matrices, in the configs/ folder of the source tree (ORBITSIM_CONFIG_DIR overrides).
-FULL_MATRIX = "bench.yaml"
-QUICK_MATRIX = "bench_quick.yaml"
-
-
-def _config_dir() -> Path:
-    override = os.environ.get("ORBITSIM_CONFIG_DIR")
-    return Path(override) if override else Path(__file__).resolve().parents[2] / "configs"
+#: The bundled matrices run without MATRIX (orbitsim/data/bench/, see orbitsim.data).
+FULL_MATRIX = "full"
+QUICK_MATRIX = "quick"
 
 
 @click.command("bench")
-@click.argument("matrix", required=False, type=click.Path(dir_okay=False), metavar="[MATRIX.yaml]")
+@click.argument("matrix", required=False, type=click.Path(dir_okay=False), metavar="[MATRIX]")
 @click.option("--quick", is_flag=True,
-              help="Without MATRIX: run configs/bench_quick.yaml (under a minute). With MATRIX: at most "
+              help="Without MATRIX: run the bundled `quick` matrix (under a minute). With MATRIX: at most "
                    "3 repeats, a tenth of the work, no long trace run. Example: --quick")
 @click.option("-o", "--outdir", type=click.Path(file_okay=False), default="benchmarks/results",
               show_default=True, help="Directory for results.json, results.md and the figures. "
@@ -38,7 +30,8 @@ def command(matrix: str | None, quick: bool, outdir: str, groups: tuple[str, ...
             no_plots: bool, quiet: bool) -> None:
     """Benchmark orbitsim against REBOUND, side by side in one run.
 
-    Runs every group of MATRIX (default: configs/bench.yaml) and writes OUTDIR/results.json
+    Runs every group of MATRIX (a matrix file or a bundled name, `orbitsim list matrices`;
+    default: the bundled `full`, the recorded benchmarks) and writes OUTDIR/results.json
     (machine, versions, thread count, every case with median/min/max and JIT time apart),
     OUTDIR/results.md (the targets table first) and figures (throughput against N with the
     measured hardware ceiling; small-N time per step per integrator). Ratios against REBOUND
@@ -47,14 +40,15 @@ def command(matrix: str | None, quick: bool, outdir: str, groups: tuple[str, ...
     \b
     Examples:
       orbitsim bench --quick -o out/bench
-      orbitsim bench configs/bench.yaml -o benchmarks/results --threads 2
-      orbitsim bench configs/bench.yaml --group trace -o benchmarks/results/trace --no-plots
+      orbitsim bench full -o benchmarks/results --threads 2
+      orbitsim bench --group trace -o benchmarks/results/trace --no-plots
+      orbitsim bench my_matrix.yaml -o out/mine
     """
     from orbitsim.bench.matrix import BenchMatrixError, load_matrix
+    from orbitsim.data import MATRICES, bundled_dir
 
-    path = Path(matrix) if matrix else _config_dir() / (QUICK_MATRIX if quick else FULL_MATRIX)
     try:
-        loaded = load_matrix(path)
+        loaded = load_matrix(matrix or bundled_dir(MATRICES) / f"{QUICK_MATRIX if quick else FULL_MATRIX}.yaml")
         if groups:
             loaded = loaded.select(groups)
     except BenchMatrixError as err:

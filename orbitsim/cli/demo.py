@@ -10,12 +10,12 @@ from orbitsim.cli.compare import command_line
 from orbitsim.cli.errors import reports_errors
 from orbitsim.cli.options import quiet_option
 
-#: The bundled scenario of the lesson (configs/lesson.yaml).
+#: The bundled scenario of the lesson (orbitsim/data/scenarios/lesson.yaml).
 LESSON_SCENARIO = "lesson"
 
 
 def lesson_scenario() -> object:
-    """The lesson scenario from the bundled configs (found without a working directory)."""
+    """The lesson scenario, bundled with the package (found without a working directory)."""
     from orbitsim.scenario import load_scenario
 
     return load_scenario(LESSON_SCENARIO)
@@ -31,7 +31,7 @@ def lesson_scenario() -> object:
 def command(ctx: click.Context, outdir: Path, quiet: bool) -> None:
     """One orbit, three ways to step time: explicit Euler, semi-implicit Euler and velocity Verlet.
 
-    Runs the bundled lesson (configs/lesson.yaml): a planet on an e = 0.3 orbit for 6.3 orbits at
+    Runs the bundled lesson (`orbitsim validate lesson`): a planet on an e = 0.3 orbit for 6.3 orbits at
     150 steps per orbit, under each scheme and under REBOUND's IAS15 as the reference, then a
     sweep of dt. Writes an HTML and a Markdown report with two figures (orbits over energy
     traces; errors against dt) and prints where the report is. Takes a few seconds once the

@@ -47,17 +47,17 @@ def command(trace: str, fmt: str, output: str, sample: int, positions: bool, for
       orbitsim export run.h5 --format scenario --sample 100 -o next.yaml && orbitsim run next.yaml
       orbitsim export run.h5 --format csv --positions -o run.csv
     """
-    from orbitsim.io import export
+    from orbitsim.io import csv_export, export
 
     if positions and fmt != "csv":
         raise OneLineUsageError(f"--positions is for --format csv (--format {fmt} always writes the state)")
     if sample != -1 and fmt == "csv":
         raise OneLineUsageError("--sample is for --format rebound or scenario (csv writes every sample)")
-    targets = [Path(output)] + ([export.positions_csv_path(output)] if positions else [])
+    targets = [Path(output)] + ([csv_export.positions_csv_path(output)] if positions else [])
     for target in targets:
         _check_target(target, trace, force)
     if fmt == "csv":
-        export.export_csv(trace, output, positions=positions)
+        csv_export.export_csv(trace, output, positions=positions)
         return
     notes = (export.export_rebound if fmt == "rebound" else export.export_scenario)(trace, output, sample)
     if notes.departed:  # after a merge or removal: who left, and that the export holds the bodies still in the run

@@ -1,6 +1,8 @@
-"""``orbitsim list``: the integrators and the bundled scenarios."""
+"""``orbitsim list``: the integrators, and the bundled scenarios, sweeps and benchmark matrices."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import click
 
@@ -8,15 +10,17 @@ from orbitsim.cli.errors import one_line, reports_errors
 
 
 @click.command("list")
-@click.argument("what", type=click.Choice(["integrators", "scenarios"]), required=False)
+@click.argument("what", type=click.Choice(["integrators", "scenarios", "sweeps", "matrices"]), required=False)
 @click.option("--settings", "settings", is_flag=True,
               help="List each integrator's settings (integrator: {name: ..., KEY: VALUE}): default and meaning. "
                    "Example: orbitsim list integrators --settings")
 @reports_errors
 def command(what: str | None, settings: bool) -> None:
-    """List integrators (order, symplecticity) or bundled scenarios (N, integrator, description).
+    """List integrators (order, symplecticity), bundled scenarios (N, integrator, description),
+    bundled sweeps (base scenario, file) or bundled benchmark matrices (groups, file).
 
-    With no argument, lists both. Bundled scenarios run by name: `orbitsim run NAME`.
+    With no argument, lists all four. Bundled files run by name: `orbitsim run NAME`,
+    `orbitsim batch NAME`, `orbitsim bench NAME`; copy the file listed to start your own.
     With --settings, the integrators' settings instead of the integrator table.
 
     \b
@@ -25,15 +29,17 @@ def command(what: str | None, settings: bool) -> None:
       orbitsim list integrators
       orbitsim list integrators --settings
       orbitsim list scenarios
+      orbitsim list sweeps
     """
-    if settings and what == "scenarios":
+    if settings and what not in (None, "integrators"):
         raise click.UsageError("--settings lists the integrators' settings: orbitsim list integrators --settings")
-    if what in (None, "integrators"):
-        _settings() if settings else _integrators()
-    if what is None:
-        click.echo()
-    if what in (None, "scenarios"):
-        _scenarios()
+    listers = {"integrators": _settings if settings else _integrators, "scenarios": _scenarios, "sweeps": _sweeps,
+               "matrices": _matrices}
+    for k, (name, lister) in enumerate(listers.items()):
+        if what in (None, name):
+            if k and what is None:
+                click.echo()
+            lister()
 
 
 def _integrators() -> None:
@@ -82,6 +88,39 @@ def _scenarios() -> None:
         except ScenarioError as err:  # list it anyway: a broken bundled file should be visible
             rows.append((name, "?", "?", f"INVALID: {one_line(err)}"))
     _table(("scenario", "N", "integrator", "description"), rows)
+
+
+def _sweeps() -> None:
+    from orbitsim.data import SWEEPS
+
+    _files(SWEEPS, "sweep", "base", lambda doc: str(doc.get("base", "?")))
+
+
+def _matrices() -> None:
+    from orbitsim.data import MATRICES
+
+    _files(MATRICES, "matrix", "groups",
+           lambda doc: ", ".join(str(g.get("name", "?")) for g in doc.get("groups") or [] if isinstance(g, dict)))
+
+
+def _files(kind: str, noun: str, column: str, summary: Callable[[dict], str]) -> None:
+    """A table of the bundled files of one kind: name, one summary column read from the YAML, file."""
+    import yaml
+
+    from orbitsim.data import bundled_dir, bundled_files
+
+    found = bundled_files(kind)
+    if not found:
+        click.echo(f"no bundled {noun} files found in {bundled_dir(kind)}")
+        return
+    rows = []
+    for name, path in found.items():
+        try:
+            doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+            rows.append((name, summary(doc) if isinstance(doc, dict) else "INVALID: not a mapping", str(path)))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+            rows.append((name, f"INVALID: {one_line(err)}", str(path)))
+    _table((noun, column, "file"), rows)
 
 
 def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:

@@ -9,6 +9,7 @@ subcommand module at all.
 from __future__ import annotations
 
 import importlib
+import importlib.util  # a submodule: `import importlib` does not load it (an editable install's finder did)
 import sys
 
 import click

@@ -32,7 +32,7 @@ def command(scenario: tuple[str, ...], resolved: bool, quiet: bool) -> None:
     \b
     Examples:
       orbitsim validate my_system.yaml
-      orbitsim validate configs/*.yaml
+      orbitsim validate systems/*.yaml
       orbitsim validate figure_eight --resolved > figure_eight_resolved.yaml
     """
     from orbitsim.scenario import load_scenario

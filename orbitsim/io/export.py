@@ -1,4 +1,4 @@
-"""A trace's state or time series in other formats: a REBOUND file, a scenario, CSV.
+"""One sample of a trace in other formats: a REBOUND file, or a scenario that continues the run.
 
 * :func:`export_rebound`: one sample's state as a REBOUND snapshot (:mod:`orbitsim.io.rebound_file`),
   bits unchanged.
@@ -9,7 +9,8 @@
   coordinates, :mod:`orbitsim.scenario.integrator_state`). Its ``t_start`` is the sample's time, so its
   samples continue the original's times (``t0 + n * dt`` against the original's
   ``t_start + (K + n) * dt``: equal to round-off, a few ulp, not bit for bit).
-* :func:`export_csv`: the per-sample series, and with ``positions`` every body's state in long format.
+
+(The per-sample series as CSV: :mod:`orbitsim.io.csv_export`.)
 
 After a merge or a removal (``events:``) the REBOUND file and the scenario hold the bodies still in
 the run at the sample, with their masses and radii then (the trace's ``bodies/final_masses`` and
@@ -18,30 +19,24 @@ scenario again to the sample, accepted only when that lands on the sample's exac
 merged into whom (:attr:`SampleState.departed`, :func:`departure_note`).
 
 Every file is written to a temporary name beside its target and renamed once complete, so a failure
-leaves nothing half-written (:func:`write_atomically`).
+leaves nothing half-written (:func:`orbitsim.io.durable.write_atomically`).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 
-from orbitsim.io.schema import ELEMENTS, TraceError
+from orbitsim.io.durable import write_atomically
+from orbitsim.io.schema import TraceError
 from orbitsim.io.trace_reader import open_trace
 
-__all__ = ["Departure", "ExportNotes", "SampleState", "departure_note", "export_csv", "export_rebound",
-           "export_scenario", "positions_csv_path", "read_sample", "write_atomically"]
-
-#: Samples per block when streaming a CSV: bounded memory for any trace length.
-CSV_BLOCK = 4096
-#: ``%.17g`` prints every float64 so that it reads back to the same bits.
-_EXACT = "%.17g"
+__all__ = ["Departure", "ExportNotes", "SampleState", "departure_note", "export_rebound", "export_scenario",
+           "read_sample"]
 
 
 @dataclass(frozen=True)
@@ -320,111 +315,3 @@ def _with_integrator_state(scenario: Any, stored: Any, where: str, state: Sample
                           "or was continued from another state): the exported scenario starts from the Cartesian "
                           "state and continues the run to round-off, not bit for bit")
     return scenario.with_overrides(integrator_state={"of": state_fingerprint(scenario), **kept}), ""
-
-
-def positions_csv_path(output: str | os.PathLike[str]) -> Path:
-    """Where ``--positions`` writes the long-format body states: ``OUT.csv`` -> ``OUT.positions.csv``."""
-    out = Path(output)
-    return out.with_name(f"{out.stem}.positions{out.suffix or '.csv'}")
-
-
-def export_csv(trace: str | os.PathLike[str], output: str | os.PathLike[str], *, positions: bool = False) -> None:
-    """The series (one row per sample) to ``output``; with ``positions`` also every body's state
-    (one row per sample and body) to :func:`positions_csv_path`. Each file is complete or absent."""
-    name = os.fspath(trace)
-    with open_trace(name) as f:
-        if positions and "positions" not in f:
-            raise TraceError(f"{name}: the run did not record positions (output.positions: false); drop --positions")
-        names = tuple(f["bodies/names"].asstr()[()])
-        elements = [e for e in ELEMENTS if f"elements/{e}" in f]
-        with contextlib.ExitStack() as stack:
-            series = stack.enter_context(_pending(output))
-            _write_series(f, series.file, names, elements)
-            if positions:
-                bodies = stack.enter_context(_pending(positions_csv_path(output)))
-                _write_positions(f, bodies.file, names)
-                bodies.done()
-            series.done()
-
-
-def _write_series(f: Any, out: IO[str], names: tuple[str, ...], elements: list[str]) -> None:
-    columns = ["sample", "step", "time", "kinetic", "potential", "energy", "energy_error", "px", "py", "pz",
-               "Lx", "Ly", "Lz", *(_text(f"{e}[{n}]") for e in elements for n in names)]
-    out.write(",".join(columns) + "\n")
-    count = int(f["time"].shape[0])
-    for start in range(0, count, CSV_BLOCK):
-        stop = min(count, start + CSV_BLOCK)
-        parts = [np.arange(start, stop)[:, None], f["step"][start:stop][:, None],
-                 *(f[s][start:stop][:, None] for s in ("time", "kinetic", "potential", "energy", "energy_error")),
-                 f["momentum"][start:stop], f["angular_momentum"][start:stop],
-                 *(f[f"elements/{e}"][start:stop] for e in elements)]
-        _rows(out, np.hstack([np.asarray(p, dtype=np.float64) for p in parts]), ints=2)
-
-
-def _write_positions(f: Any, out: IO[str], names: tuple[str, ...]) -> None:
-    out.write("sample,step,time,body,x,y,z,vx,vy,vz\n")
-    count, n = int(f["time"].shape[0]), len(names)
-    block = max(1, CSV_BLOCK // max(n, 1))
-    for start in range(0, count, block):
-        stop = min(count, start + block)
-        x, v = f["positions"][start:stop], f["velocities"][start:stop]
-        step, time = f["step"][start:stop], f["time"][start:stop]
-        for s in range(stop - start):
-            head = f"{start + s},{int(step[s])},{_EXACT % time[s]},"
-            for i, body in enumerate(map(_text, names)):
-                out.write(head + body + "," + ",".join(_EXACT % c for c in (*x[s, i], *v[s, i])) + "\n")
-
-
-def _text(value: str) -> str:
-    """A CSV field: quoted (RFC 4180) when a body name holds a comma, quote or line break."""
-    return f'"{value.replace(chr(34), chr(34) * 2)}"' if any(c in value for c in ',"\r\n') else value
-
-
-def _rows(out: IO[str], table: np.ndarray, ints: int) -> None:
-    """Rows of ``table``; the first ``ints`` columns (sample, step) as whole numbers."""
-    for row in table:
-        out.write(",".join([*(str(int(c)) for c in row[:ints]), *(_EXACT % c for c in row[ints:])]) + "\n")
-
-
-class _Pending:
-    """A text file being written under a temporary name; :meth:`done` marks it complete."""
-
-    def __init__(self, target: Path) -> None:
-        self.target = target
-        self.tmp = target.with_name(f".{target.name}.tmp{os.getpid()}")
-        self.file: IO[str] = open(self.tmp, "w", encoding="utf-8", newline="")  # closed by _pending
-        self.complete = False
-
-    def done(self) -> None:
-        self.complete = True
-
-
-@contextlib.contextmanager
-def _pending(target: str | os.PathLike[str]) -> Iterator[_Pending]:
-    """Write to a temporary file; rename it onto ``target`` only if :meth:`_Pending.done` was called
-    and no error occurred, else remove it. Write errors become one :class:`OutputWriteError` line."""
-    from orbitsim.io.durable import replace_durably
-    from orbitsim.io.h5safe import io_failure
-
-    path = Path(target)
-    try:
-        pending = _Pending(path)
-    except OSError as err:
-        raise io_failure(err, f"{path}: {{reason}} (nothing was written)", path) from None
-    try:
-        yield pending
-        pending.file.close()
-        if pending.complete:
-            replace_durably(pending.tmp, path)
-    except OSError as err:
-        raise io_failure(err, f"{path}: {{reason}} (nothing was written)", path) from None
-    finally:
-        pending.file.close()
-        pending.tmp.unlink(missing_ok=True)
-
-
-def write_atomically(target: str | os.PathLike[str], write: Callable[[IO[str]], Any]) -> None:
-    """Write a text file with ``write(file)`` under a temporary name, then rename it onto ``target``."""
-    with _pending(target) as pending:
-        write(pending.file)
-        pending.done()

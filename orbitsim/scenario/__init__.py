@@ -20,7 +20,7 @@ Typical use::
     text = faster.to_yaml()                            # reloads to the same bits
 
 Every problem raises :class:`ScenarioError`, whose one-line ``str()`` names the file, the key path
-and what to fix, e.g. ``configs/x.yaml: bodies[1].m: mass must be >= 0, got -1 (line 12)``.
+and what to fix, e.g. ``x.yaml: bodies[1].m: mass must be >= 0, got -1 (line 12)``.
 Importing this package does not import numba; building a Scenario does (the integrator registry).
 """
 

@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from orbitsim.data import SCENARIOS, bundled_dir, bundled_files
 from orbitsim.integrators.rebound_names import rebound_note
 from orbitsim.scenario.bodies import BodySet, check_coincident, read_bodies, shift_to_barycentre
 from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
@@ -31,18 +32,11 @@ OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "prim
 CHECKPOINT_KEYS = ("every", "seconds")
 #: Characters a REBOUND file's stem may not bring into a scenario name (which becomes a file name).
 _UNSAFE_NAME_CHARS = re.compile(r"[^A-Za-z0-9_.+-]")
-#: A YAML file in the config directory is a scenario when one of these starts a line: the same
-#: directory holds sweep and benchmark matrices, which are not.
-_SCENARIO_MARK = re.compile(r"^(bodies|ephemeris|generator)\s*:", re.M)
-_UNSAFE_NAME_CHARS = re.compile(r"[^A-Za-z0-9_.+-]")
 
 
 def config_dir() -> Path:
-    """Directory of the bundled scenarios: ``$ORBITSIM_CONFIG_DIR``, else ``configs/`` of the source tree."""
-    override = os.environ.get("ORBITSIM_CONFIG_DIR")
-    if override:
-        return Path(override)
-    return Path(__file__).resolve().parents[2] / "configs"
+    """Directory of the bundled scenarios: ``orbitsim/data/scenarios`` (see :mod:`orbitsim.data`)."""
+    return bundled_dir(SCENARIOS)
 
 
 def bundled_scenarios() -> dict[str, Path]:
@@ -51,21 +45,9 @@ def bundled_scenarios() -> dict[str, Path]:
     Returns
     -------
     dict[str, pathlib.Path]
-        Every ``*.yaml`` file of :func:`config_dir` with a top-level ``bodies``, ``ephemeris``
-        or ``generator`` key.
+        Every ``*.yaml`` file of :func:`config_dir`.
     """
-    folder = config_dir()
-    if not folder.is_dir():
-        return {}
-    found = {}
-    for path in sorted(folder.glob("*.yaml")):
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError):
-            text = "bodies:"  # unreadable: list it, so that validating it reports the problem
-        if _SCENARIO_MARK.search(text):
-            found[path.stem] = path
-    return found
+    return bundled_files(SCENARIOS)
 
 
 def _locate(spec: str | os.PathLike[str]) -> tuple[Path, str]:
