@@ -10,6 +10,14 @@ arithmetic: the same input gives the same bits however the run is cut.
 Public entry points: :func:`simulate` (collect everything into a :class:`SimulationResult`) and
 :class:`Simulation` (iterate over :class:`SampleChunk` objects, e.g. to append to an HDF5 trace).
 The plan helpers and result types are re-exported here, where they used to live.
+
+Why one module: :class:`Simulation` is one object, the engine of a run. Its methods share the
+state arrays, the integrator's work, the force context and the events watch it keeps, and each
+changes them together (bodies replaced after a merge, a jitted call undone on a stop, samples
+extended with elements); :func:`simulate` is its one-call front door, a few lines around
+:meth:`Simulation.chunks`. The pieces with a concept of their own already live apart: the
+sampling plans (:mod:`orbitsim.sampling`), the results (:mod:`orbitsim.results`), the stopping
+of long calls (:mod:`orbitsim.stopping`) and the events driver (:mod:`orbitsim.events.driver`).
 """
 
 from __future__ import annotations
@@ -184,7 +192,7 @@ class Simulation:
         continues after a merge or a removal (:mod:`orbitsim.events.driver`).
         """
         from orbitsim.physics.diagnostics import potential_rows_scratch
-        from orbitsim.physics.gravity import accelerations_at, make_force
+        from orbitsim.physics.force_context import accelerations_at, make_force
 
         self.m, self.pos, self.vel = (np.ascontiguousarray(a, dtype=np.float64) for a in (m, pos, vel))
         self.n = int(self.m.shape[0])

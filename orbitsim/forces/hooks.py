@@ -1,6 +1,6 @@
 """Where every integrator meets a run's forces: hooks that compile to nothing without forces.
 
-A step receives the force context of :func:`orbitsim.physics.gravity.make_force`; in a run with
+A step receives the force context of :func:`orbitsim.physics.force_context.make_force`; in a run with
 forces its ``forces`` field holds a :class:`Forces` (:func:`forced_context` puts it there), and
 None otherwise. The hooks below are Numba ``overload`` s resolved when a step is typed: for a
 context whose ``forces`` is None they are empty functions, inlined at Numba's IR level and so
@@ -41,7 +41,7 @@ from numba.extending import overload
 
 if TYPE_CHECKING:
     from orbitsim.forces.table import ForceSet
-    from orbitsim.physics.gravity import ForceContext
+    from orbitsim.physics.force_context import ForceContext
 
 __all__ = ["Forces", "add_forces", "add_kick_forces", "add_node_forces", "forced_context", "has_velocity_operator",
            "record_force_energy", "refresh_accelerations", "velocity_operator"]
@@ -58,7 +58,7 @@ class Forces(NamedTuple):
 
 
 def forced_context(force: ForceContext, forces: ForceSet, n: int) -> ForceContext:
-    """``force`` (a context of :func:`~orbitsim.physics.gravity.make_force` for N bodies) with the
+    """``force`` (a context of :func:`~orbitsim.physics.force_context.make_force` for N bodies) with the
     ForceSet's forces in its ``forces`` field."""
     from orbitsim.forces.kernels import make_force_scratch
     from orbitsim.forces.terms import terms_of
@@ -192,7 +192,7 @@ def _refresh_accelerations(force, pos, vel, m, acc, derivative):
     if _terms(force) is None:
         return lambda force, pos, vel, m, acc, derivative: None
     from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of
-    from orbitsim.physics.gravity import newtonian_accelerations
+    from orbitsim.physics.force_context import newtonian_accelerations
 
     def impl(force, pos, vel, m, acc, derivative):
         forces = force.forces

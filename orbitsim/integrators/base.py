@@ -9,7 +9,7 @@ it and a default where a scheme has nothing to say. Callers use the record's fie
    evaluations per step, scratch slots, citation).
 2. ``step(pos, vel, acc, m, force, dt, work)``: one whole step of size ``dt``, in place.
    ``pos``, ``vel``, ``acc`` are ``(3, N)``; ``m`` is ``(N,)``; ``force`` is the force context
-   of :func:`orbitsim.physics.gravity.make_force` (a run's forces in its ``forces`` field); ``work``
+   of :func:`orbitsim.physics.force_context.make_force` (a run's forces in its ``forces`` field); ``work``
    is what ``make_work`` made. On entry ``acc`` holds the accelerations at ``pos``; on exit it
    holds those at the new ``pos`` when ``spec.fsal`` is true (first-same-as-last: kick-drift-kick
    schemes reuse the last force evaluation), otherwise whatever the scheme last evaluated.
@@ -284,7 +284,7 @@ def sample_loop(advance, sample_time, state, force, dt, work, t0, n_done, target
     state was not finite, and the loop stops there.
     """
     pos, vel, acc, m = state
-    written = 0
+    written = np.int64(0)  # not the literal 0: record_sample would compile twice (for Literal[int](0) and int64)
     for k in range(targets.shape[0]):
         if n_done < targets[k]:
             n_done, ok = advance(pos, vel, acc, m, force, dt, work, t0, n_done, targets[k])

@@ -47,7 +47,7 @@ from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
 from orbitsim.forces.hooks import add_kick_forces, refresh_accelerations, velocity_operator
 from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, grid_time, kick_drift, sample_loop
-from orbitsim.physics.gravity import newtonian_accelerations
+from orbitsim.physics.force_context import newtonian_accelerations
 
 #: Order 2: the plain drift-kick-drift leapfrog, one substep.
 LEAPFROG2_WEIGHTS = np.array([1.0])

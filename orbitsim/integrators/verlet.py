@@ -14,7 +14,7 @@ from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
 from orbitsim.forces.hooks import add_kick_forces, has_velocity_operator, refresh_accelerations, velocity_operator
 from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, grid_time, kick, sample_loop
-from orbitsim.physics.gravity import newtonian_accelerations
+from orbitsim.physics.force_context import newtonian_accelerations
 
 SPEC = IntegratorSpec(
     name="verlet",

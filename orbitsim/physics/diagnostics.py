@@ -33,7 +33,7 @@ from numba import prange
 from numba.extending import overload
 
 from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
-from orbitsim.physics.gravity import AllPairs, Blocks, Rows, kernel_class
+from orbitsim.physics.force_context import AllPairs, Blocks, Rows, kernel_class
 
 #: Above this N the O(N^2) potential runs its rows in parallel (its rows are independent).
 PARALLEL_POTENTIAL_MIN_N = 384
