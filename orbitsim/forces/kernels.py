@@ -29,7 +29,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.gr import (
     MAX_ITERATIONS,
     gr_accelerations,
@@ -238,7 +238,7 @@ def _ol_force_energy_of(terms, pos, vel, m, G, e):
 
 # -- the implicit midpoint ----------------------------------------------------------------------
 
-@jit
+@jit_inline
 def _converged(vf, vp):
     """REBOUNDx's implicit-midpoint test: sum |v_new - v_prev|^2 / sum |v_new|^2 < eps^2."""
     delta = 0.0
@@ -264,13 +264,17 @@ def _implicit_midpoint(term, pos, vel, m, G, h, scratch):
     n = pos.shape[1]
     v0, vf, vp, va, a = scratch[0:3], scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
     work = scratch[_OP_ROWS:]
-    v0[:, :] = vel
-    vf[:, :] = vel
-    va[:, :] = vel
+    for k in range(3):  # explicit loops, not slice assignments: they cost more than a few bodies' arithmetic
+        for i in range(n):
+            v0[k, i] = vel[k, i]
+            vf[k, i] = vel[k, i]
+            va[k, i] = vel[k, i]
     com = _com_for(term, pos, vel, m)
     for _ in range(_MIDPOINT_ITERATIONS):
-        vp[:, :] = vf
-        a[:, :] = 0.0
+        for k in range(3):
+            for i in range(n):
+                vp[k, i] = vf[k, i]
+                a[k, i] = 0.0
         _velocity_term(term, pos, va, m, G, com, a, work)
         for k in range(3):
             for i in range(n):
@@ -280,7 +284,9 @@ def _implicit_midpoint(term, pos, vel, m, G, h, scratch):
         for k in range(3):
             for i in range(n):
                 va[k, i] = 0.5 * (v0[k, i] + vf[k, i])
-    vel[:, :] = vf
+    for k in range(3):
+        for i in range(n):
+            vel[k, i] = vf[k, i]
 
 
 # -- entry points for Python callers and tests --------------------------------------------------

@@ -185,10 +185,19 @@ def _state_changed(pos, vel, work):
     return False
 
 
+@jit_inline
+def _copy_state(pos, vel, to_pos, to_vel):
+    """to_pos, to_vel = pos, vel (3, N), by explicit loops: a slice assignment costs more than a
+    planetary system's copy (with velocity-dependent forces the map restarts every step)."""
+    for c in range(3):
+        for i in range(pos.shape[1]):
+            to_pos[c, i] = pos[c, i]
+            to_vel[c, i] = vel[c, i]
+
+
 @jit
 def _remember(pos, vel, work):
-    work.last_pos[:, :] = pos
-    work.last_vel[:, :] = vel
+    _copy_state(pos, vel, work.last_pos, work.last_vel)
 
 
 @jit
@@ -199,7 +208,8 @@ def _start(pos, vel, m, force, dt, work):
     from_inertial(pos, vel, m, work.weights, work.config[0], jpos, jvel)
     _remember(pos, vel, work)
     flags = work.flags
-    flags[:] = 0
+    for k in range(flags.shape[0]):
+        flags[k] = 0
     flags[F_PHASE] = PHASE_SYNCED
     return apply_corrector(jpos, jvel, m, force, dt, 1.0, work)
 
@@ -211,8 +221,7 @@ def _synchronize(pos, vel, m, force, dt, work):
         return KEPLER_OK, 0  # no step since the start: pos, vel still hold the start state
     spos = work.spos
     svel = work.svel
-    spos[:, :] = work.jpos
-    svel[:, :] = work.jvel
+    _copy_state(work.jpos, work.jvel, spos, svel)
     half = 0.5 * dt
     status, body = kepler_drift_bodies(spos, svel, work.mu, half, 1, work.kscratch, work.kstage)
     if status != KEPLER_OK:
@@ -255,13 +264,15 @@ def _ensure_started(pos, vel, m, force, dt, work, n_done):
 @jit
 def step(pos, vel, acc, m, force, dt, work):
     """One step, ``pos``/``vel`` in and out (``acc`` is not used); same bits as :func:`run`."""
-    if not _ensure_started(pos, vel, m, force, dt, work, -1):
+    # int64 values, not literals: a literal argument compiles a callee once more for its own type.
+    no_step, zero, one = np.int64(-1), np.int64(0), np.int64(1)
+    if not _ensure_started(pos, vel, m, force, dt, work, no_step):
         return
-    _, status, body = _advance_to(1, 0, m, force, dt, work)
+    _, status, body = _advance_to(one, zero, m, force, dt, work)
     if status == KEPLER_OK:
         status, body = _synchronize(pos, vel, m, force, dt, work)
     if status != KEPLER_OK:
-        _fail(pos, vel, work, status, body, -1)
+        _fail(pos, vel, work, status, body, no_step)
 
 
 @jit
