@@ -15,7 +15,7 @@ physics has computed. Frames can fall anywhere: the physics, and so every state 
 same sequence of fixed steps.
 
 Everything here is pure numpy on a few numbers per frame; nothing is stepped or drawn, so the
-loop's guarantees are tested directly (``tests/test_animate.py``).
+loop's guarantees are tested directly (``tests/animation/test_animate.py``).
 """
 
 from __future__ import annotations

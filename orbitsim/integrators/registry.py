@@ -4,7 +4,7 @@ Adding a scheme: write its module (its :class:`~orbitsim.integrators.base.Integr
 contract is in :mod:`orbitsim.integrators.base`) and append ``(name, module)`` to :data:`SCHEMES`;
 the module holds the record as the upper-case name (``verlet`` -> ``VERLET``). A family of schemes
 may share one module (the four leapfrogs) or be a package (``ias15``, ``wisdom_holman``, ``trace``:
-the package's ``__init__`` holds the record). ``tests/test_registry.py`` then checks it as part of
+the package's ``__init__`` holds the record). ``tests/integrators/test_registry.py`` then checks it as part of
 the whole.
 
 The modules are imported when first asked for. Looking up a scheme by its name imports that

@@ -5,7 +5,7 @@ The script plays precomputed orbitsim runs; it integrates nothing. Its animation
 fixed-timestep loop of ``orbitsim animate``: each drawn frame adds its elapsed time (times the
 playback speed) to an accumulator, takes whole steps of the run's dt while the accumulator holds
 at least dt, and draws the planet interpolated by alpha = accumulator / dt between the last two
-states. ``window.lesson`` exposes the loop for the browser test (``tests/test_lesson_browser.py``).
+states. ``window.lesson`` exposes the loop for the browser test (``tests/lesson/test_lesson_browser.py``).
 """
 
 PAGE_TEMPLATE = r"""<!DOCTYPE html>

@@ -1,7 +1,7 @@
 """The coefficient tables of IAS15's Gauss-Radau step (:mod:`orbitsim.integrators.ias15.core`).
 
 Constants of the quadrature alone, not of any code: the node spacings and the two changes of
-basis between the divided differences g and the polynomial coefficients b. ``tests/test_ias15.py``
+basis between the divided differences g and the polynomial coefficients b. ``tests/integrators/test_ias15.py``
 recomputes every entry from the Radau polynomial in exact arithmetic.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 # Gauss-Radau spacings h_n on [0, 1] (h_0 = 0), Everhart (1985), Table 1; to 30 digits as in
-# Rein & Spiegel (2015). tests/test_ias15.py recomputes them (and rr, c, d below) exactly.
+# Rein & Spiegel (2015). tests/integrators/test_ias15.py recomputes them (and rr, c, d below) exactly.
 H = np.array([
     0.0, 0.0562625605369221464656521910318, 0.180240691736892364987579942780,
     0.352624717113169637373907769648, 0.547153626330555383001448554766, 0.734210177215410531523210605558,

@@ -30,7 +30,7 @@ sides; :mod:`.bs`, the Bulirsch-Stoer step, and :mod:`.substeps`, its two sub-st
 inside the sub-steps; :mod:`.layout`, the ``work`` tuple; this module, the scheme's record
 (:data:`TRACE`) and its run loops.
 
-What TRACE takes from its neighbours, kept bit for bit with REBOUND 5.2.2 (tests/test_trace_core.py,
+What TRACE takes from its neighbours, kept bit for bit with REBOUND 5.2.2 (tests/integrators/test_trace_core.py,
 test_trace_engine.py, test_trace_ias15.py, test_trace_collisions.py):
 
 * IAS15: the Gauss-Radau arithmetic of :mod:`orbitsim.integrators.ias15.core` is reused; only the

@@ -14,7 +14,7 @@ with ``Z(a_s dt, inv * b_s dt)`` applied for s = 1..S in the order of :data:`COR
 ``inv = +1`` gives C, ``inv = -1`` gives C^-1 (because Z(a, b)^-1 = Z(-a, b) and each table is
 antisymmetric under reversal). To first order in b, Z(a, b) = exp(-2 b sinh(a ad_K) I), so the
 stages act through the odd moments ``sum_s b_s a_s^(2k+1)``; the order-p table fixes the first
-(p - 1)/2 of them, and all tables share those moments (tested in tests/test_wisdom_holman.py).
+(p - 1)/2 of them, and all tables share those moments (tested in tests/integrators/test_wisdom_holman.py).
 
 The numbers are those of Wisdom, Holman & Touma (1996) as extended to orders 11 and 17 and
 tabulated by Rein & Tamayo (2015), Table 1, with ``a_k = k sqrt(7/40)``; they are the values
