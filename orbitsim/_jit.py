@@ -94,6 +94,7 @@ os.environ["NUMBA_CACHE_DIR"] = str(CACHE_DIR)
 
 import numba  # noqa: E402
 from llvmlite import binding as _llvm_binding  # noqa: E402
+from llvmlite import ir  # noqa: E402
 from numba.extending import intrinsic, overload  # noqa: E402
 
 if numba.config.CACHE_DIR != os.environ["NUMBA_CACHE_DIR"]:
@@ -201,8 +202,6 @@ def _load_stop_flag(typingctx):
     """The flag as a boolean, by a monotonic atomic load: the compiler may neither keep the value
     in a register across a loop nor drop the load (a plain load of a value the loop never writes
     could be hoisted out of it, and the kernel would never see the flag change)."""
-    from llvmlite import ir
-
     def codegen(context, builder, signature, args):
         flag = builder.module.globals.get(_STOP_SYMBOL)
         if flag is None:
