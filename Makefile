@@ -20,9 +20,14 @@ $(STAMP): pyproject.toml Makefile
 demo: $(STAMP)
 	$(BIN)/orbitsim demo -o demo-report
 
+# The suite runs on every core (pytest-xdist; TEST_WORKERS=0 for one process) and ends with its
+# slowest tests. Workers share Numba's on-disk cache: each kernel is written under a temporary name
+# and renamed into place, so a kernel compiled by two workers at once is stored whole.
+TEST_WORKERS ?= auto
+
 test: $(STAMP)
 	$(BIN)/ruff check orbitsim tests benchmarks
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --durations=20
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow

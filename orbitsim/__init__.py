@@ -24,11 +24,11 @@ __all__ = ["Simulation", "SimulationResult", "__version__", "integrators", "simu
 def __getattr__(name: str) -> Any:
     # Lazy: `import orbitsim` (and the CLI) must not pay for importing numba.
     if name in ("simulate", "Simulation", "SimulationResult"):
-        import importlib
+        import importlib  # noqa: PLC0415 -- lazy: off `import orbitsim` (the CLI start-up)
 
         return getattr(importlib.import_module("orbitsim.simulation"), name)
     if name == "integrators":
-        from orbitsim.integrators.registry import INTEGRATORS
+        from orbitsim.integrators.registry import INTEGRATORS  # noqa: PLC0415 -- lazy: off `import orbitsim` (the CLI start-up)
 
         return INTEGRATORS
     raise AttributeError(f"module 'orbitsim' has no attribute {name!r}")

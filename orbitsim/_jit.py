@@ -34,6 +34,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -94,6 +95,8 @@ os.environ["NUMBA_CACHE_DIR"] = str(CACHE_DIR)
 
 import numba  # noqa: E402
 from llvmlite import binding as _llvm_binding  # noqa: E402
+from llvmlite import ir  # noqa: E402
+from numba.core import event  # noqa: E402
 from numba.extending import intrinsic, overload  # noqa: E402
 
 if numba.config.CACHE_DIR != os.environ["NUMBA_CACHE_DIR"]:
@@ -201,8 +204,6 @@ def _load_stop_flag(typingctx):
     """The flag as a boolean, by a monotonic atomic load: the compiler may neither keep the value
     in a register across a loop nor drop the load (a plain load of a value the loop never writes
     could be hoisted out of it, and the kernel would never see the flag change)."""
-    from llvmlite import ir
-
     def codegen(context, builder, signature, args):
         flag = builder.module.globals.get(_STOP_SYMBOL)
         if flag is None:
@@ -239,8 +240,6 @@ class CompileWatch:
         self._started = 0.0
 
     def on_start(self, _event: Any) -> None:
-        import time
-
         if self.count == 0 and self.on_first is not None:
             self.on_first()
         self.count += 1
@@ -249,8 +248,6 @@ class CompileWatch:
         self._depth += 1
 
     def on_end(self, _event: Any) -> None:
-        import time
-
         self._depth -= 1
         if self._depth == 0:
             self.seconds += time.perf_counter() - self._started
@@ -259,7 +256,6 @@ class CompileWatch:
 def watch_compiles(watch: CompileWatch) -> Any:
     """A context manager under which ``watch`` sees every Numba compilation (Numba compiles under
     one global lock, so the count is exact whichever thread compiles)."""
-    from numba.core import event
 
     class _Listener(event.Listener):
         def on_start(self, ev: Any) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.preflight import sample_count
+from orbitsim.sampling import ExplicitPlan
 from orbitsim.scenario import Scenario
 
 __all__ = ["LONG_RUN_S", "SLOW_STEP_S", "TimeEstimate", "estimate_time", "format_seconds", "rough_work",
@@ -89,7 +90,7 @@ def _eval_work(n: int) -> float:
 
 def step_work(scenario: Scenario) -> float:
     """:func:`rough_work` of one step."""
-    from orbitsim.integrators.registry import get_spec
+    from orbitsim.integrators.registry import get_spec  # noqa: PLC0415 -- lazy: loads numba
 
     return get_spec(scenario.integrator).force_evals * _eval_work(scenario.n_bodies)
 
@@ -135,9 +136,9 @@ def estimate_time(scenario: Scenario, *, threads: int | None = None, steps: int 
     """
     if scenario.adaptive:
         return None
-    from orbitsim._jit import set_num_threads
-    from orbitsim.physics.gravity import PARALLEL_MIN_N
-    from orbitsim.simulation import Simulation
+    from orbitsim._jit import set_num_threads  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.physics.gravity import PARALLEL_MIN_N  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.simulation import Simulation  # noqa: PLC0415 -- lazy: loads numba
 
     steps = scenario.steps if steps is None else steps
     if not always and rough_work(scenario, steps) < ESTIMATE_MIN_WORK and step_work(scenario) < SLOW_STEP_MIN_WORK:
@@ -185,8 +186,6 @@ def _time_steps(sim: Any, sample_s: float) -> float | None:
     Each timed call ends on a recorded sample (a plan's targets are its samples), whose cost
     ``sample_s`` is taken off.
     """
-    from orbitsim.sampling import ExplicitPlan
-
     def run(k: int) -> float | None:
         first = sim.steps_done
         start = time.perf_counter()
@@ -212,7 +211,7 @@ def _time_steps(sim: Any, sample_s: float) -> float | None:
 
 def _time_sample(sim: Any) -> float:
     """Seconds one sample costs: its potential energy (T, P and L are O(N) and cheap beside it)."""
-    from orbitsim.physics.diagnostics import potential_energy
+    from orbitsim.physics.diagnostics import potential_energy  # noqa: PLC0415 -- lazy: loads numba
 
     eps2 = sim.softening * sim.softening
     best = math.inf

@@ -15,12 +15,14 @@ is cheap beside the run it guards (see each function for its cost).
 
 from __future__ import annotations
 
+import functools
 import math
 import shutil
 from pathlib import Path
 
 import numpy as np
 
+from orbitsim.io.schema import BODY_ARRAYS, SCALARS, VECTORS
 from orbitsim.scenario import Scenario, ScenarioError
 
 __all__ = ["check_disk", "check_initial_state", "check_overlaps", "format_bytes", "sample_count", "trace_bytes"]
@@ -61,8 +63,6 @@ def trace_bytes(scenario: Scenario, samples: int | None = None) -> int:
     half on the bundled scenarios' series. With checkpoints, the journal and the trace built from
     it coexist at the end of the run, hence twice.
     """
-    from orbitsim.io.schema import BODY_ARRAYS, SCALARS, VECTORS
-
     n = scenario.n_bodies
     per_sample = 8 * (len(SCALARS) + 3 * len(VECTORS))
     if scenario.record_positions:
@@ -129,7 +129,7 @@ def check_overlaps(scenario: Scenario) -> None:
     events = scenario.events
     if scenario.radii is None or (events is not None and events.collisions is not None):
         return
-    from orbitsim.events.overlap import overlapping_pairs
+    from orbitsim.events.overlap import overlapping_pairs  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     pairs = overlapping_pairs(scenario.positions, scenario.radii)
     if not pairs:
@@ -204,12 +204,11 @@ def _potential(scenario: Scenario) -> float:
         r = np.sqrt(((x[None, :, :] - x[:, None, :]) ** 2).sum(axis=2) + eps * eps)
         terms = np.triu(m[None, :] / np.where(r > 0.0, r, 1.0), k=1)  # r = 0 only on the diagonal here
         return float(-G * np.sum(m * terms.sum(axis=1)))
-    import functools
 
-    import numba
+    import numba  # noqa: PLC0415 -- lazy: loads numba
 
-    from orbitsim.physics.diagnostics import potential_energy, potential_rows_scratch
-    from orbitsim.stopping import run_interruptible
+    from orbitsim.physics.diagnostics import potential_energy, potential_rows_scratch  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.stopping import run_interruptible  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
     pos = np.ascontiguousarray(scenario.positions.T)
     # Minutes at N = 10^6: Ctrl-C stops it within milliseconds (orbitsim.stopping.run_interruptible).

@@ -14,6 +14,8 @@ import platform
 import socket
 from importlib import metadata
 
+from orbitsim._version import __version__
+
 __all__ = ["provenance"]
 
 NOT_INSTALLED = "not installed"
@@ -55,8 +57,6 @@ def _numba_threads(cpu_count: int) -> int:
 @functools.lru_cache(maxsize=1)
 def _static_provenance() -> tuple[tuple[str, str | int], ...]:
     """Facts that cannot change during a process's lifetime (cached; a tuple so it is immutable)."""
-    from orbitsim._version import __version__
-
     items: list[tuple[str, str | int]] = [
         ("orbitsim_version", __version__),
         ("python_version", platform.python_version()),

@@ -139,7 +139,7 @@ class StateDiagnostics:
     """
 
     def __init__(self, masses: np.ndarray, G: float, softening: float, forces: Any | None = None) -> None:
-        from orbitsim.physics.diagnostics import potential_rows_scratch
+        from orbitsim.physics.diagnostics import potential_rows_scratch  # noqa: PLC0415 -- lazy: loads numba
 
         self.m = np.ascontiguousarray(masses, dtype=np.float64)
         self.G = float(G)
@@ -150,7 +150,7 @@ class StateDiagnostics:
 
     def __call__(self, pos: np.ndarray, vel: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
         """``(kinetic, potential, momentum, angular_momentum)`` of one state (N, 3)."""
-        from orbitsim.physics.diagnostics import (
+        from orbitsim.physics.diagnostics import (  # noqa: PLC0415 -- lazy: loads numba
             angular_momentum_into,
             kinetic_energy,
             momentum_into,
@@ -166,8 +166,8 @@ class StateDiagnostics:
         kinetic = float(kinetic_energy(v, self.m))
         potential = float(potential_energy(x, self.m, self.G, self.eps2, self.rows))
         if self.forces is not None:
-            from orbitsim.forces.kernels import force_energy
-            from orbitsim.forces.terms import terms_of
+            from orbitsim.forces.kernels import force_energy  # noqa: PLC0415 -- lazy: loads numba
+            from orbitsim.forces.terms import terms_of  # noqa: PLC0415 -- beside the kernels it feeds
 
             potential += float(force_energy(x, v, self.m, self.G, terms_of(*self.forces.arrays)))
         return kinetic, potential, momentum, angular

@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from orbitsim.events import sampled
+from orbitsim.events.log import describe
 from orbitsim.stopping import Stopper, StopRequest
 
 if TYPE_CHECKING:
@@ -103,7 +105,7 @@ class RunLoop:
     def __init__(self, sink: Any, scenario: Scenario, progress: Callable[[int, int], None] | None,
                  on_chunk: Callable[[Simulation, SampleChunk], None] | None, start: RunStart | None,
                  force: bool, on_compile: Callable[[str], None] | None = None) -> None:
-        from orbitsim.checkpoint.policy import Checkpointer
+        from orbitsim.checkpoint.policy import Checkpointer  # noqa: PLC0415 -- lazy: loads h5py
 
         self.sink, self.scenario, self.steps = sink, scenario, scenario.steps
         self.progress, self.on_chunk, self.on_compile = progress, on_chunk, on_compile
@@ -147,7 +149,7 @@ class RunLoop:
         of :meth:`wall`, and so out of the steps/s the summary reports. A run whose kernels load
         from the cache compiles nothing and says nothing.
         """
-        from orbitsim._jit import CompileWatch, watch_compiles
+        from orbitsim._jit import CompileWatch, watch_compiles  # noqa: PLC0415 -- lazy: loads numba
 
         note, line = self.on_compile, f"compiling kernels for {self.scenario.integrator} (first run only)"
         self.compiles = CompileWatch(None if note is None else lambda: note(line))
@@ -160,9 +162,7 @@ class RunLoop:
         if stopper.requested():
             return
         self.sim = self._make_simulation(threads)
-        from orbitsim.events.sampled import step_check
-
-        self.step_check = step_check(self.scenario, self.sim)  # looks at the state between calls only
+        self.step_check = sampled.step_check(self.scenario, self.sim)  # looks at the state between calls only
         self.counters_before = self._scheme_counters() if self.start_point is not None else None
         self.safe = True
         with stopper.critical():
@@ -196,8 +196,8 @@ class RunLoop:
             stopper.in_chunks = False
 
     def _make_simulation(self, threads: int | None) -> Simulation:
-        from orbitsim.checkpoint.state import restore_state
-        from orbitsim.scenario_simulation import scenario_simulation
+        from orbitsim.checkpoint.state import restore_state  # noqa: PLC0415 -- lazy: loads h5py
+        from orbitsim.scenario_simulation import scenario_simulation  # noqa: PLC0415 -- lazy: loads yaml
 
         sc = self.scenario
         primary: str | int | None = None
@@ -226,7 +226,7 @@ class RunLoop:
         if len(chunk):
             self.sink.append(chunk)
             if self.e0 is None:
-                from orbitsim.results import energy_scale
+                from orbitsim.results import energy_scale  # noqa: PLC0415 -- lazy: loads numba
 
                 self.e0 = float(energy[0])
                 self.scale = energy_scale(float(chunk.kinetic[0]), float(chunk.potential[0]), self.e0)
@@ -260,7 +260,7 @@ class RunLoop:
 
     def _energy_error(self, energy: np.ndarray) -> float:
         """max |dE/E| over ``energy``; inf where the difference overflows."""
-        from orbitsim.results import relative_energy_error
+        from orbitsim.results import relative_energy_error  # noqa: PLC0415 -- lazy: loads numba
 
         with np.errstate(over="ignore", invalid="ignore"):  # an overflow gives inf, honestly, not a warning
             return float(np.max(np.abs(relative_energy_error(energy, self.e0, self.scale))))
@@ -305,8 +305,6 @@ class RunLoop:
             status, code, message = "diverged", EXIT_DIVERGED, self._divergence_message()
             steps_done = self.energy_failure[0] if self.energy_failure is not None else self.sim.steps_done
         elif watcher is not None and watcher.halted is not None and stopper.signum is None:
-            from orbitsim.events.log import describe
-
             status, code, steps_done = "halted", EXIT_HALTED, self.sim.steps_done
             message = (f"halted at t = {watcher.halted.time:.10g} (step {watcher.halted.step}) as events: asked: "
                        f"{describe(watcher.halted, self.scenario.names)}")
@@ -362,7 +360,7 @@ class RunLoop:
 
 def run_failure(exc: OSError, output: Path, existed: bool, where: str, kept: Checkpoint | None) -> OutputWriteError:
     """The one-line error of a run ended by an I/O error: the cause, where, and what is on disk."""
-    from orbitsim.io.h5safe import io_failure
+    from orbitsim.io.h5safe import io_failure  # noqa: PLC0415 -- lazy: loads h5py
 
     failed = f" while writing {exc.filename}" if getattr(exc, "filename", None) else ""
     before = f"{output} is unchanged" if existed else f"no trace was written at {output}"

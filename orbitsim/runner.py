@@ -25,7 +25,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from orbitsim.io.lock import hold_output
 from orbitsim.io.schema import OutputError
+from orbitsim.preflight import check_disk, check_initial_state, check_overlaps
 from orbitsim.runloop import EXIT_DIVERGED, RunLoop, RunSummary, run_failure
 from orbitsim.scenario import Scenario
 from orbitsim.stopping import Stopper, StopRequest
@@ -74,10 +76,9 @@ def _check_output(scenario: Scenario, output: Path, force: bool, plan: SamplePla
     source = Path(scenario.source)
     if source.is_file() and source.resolve() == output.resolve():
         raise OutputError(f"{output}: is the scenario file itself; choose another output path")
-    from orbitsim.checkpoint.sinks import check_side_files
+    from orbitsim.checkpoint.sinks import check_side_files  # noqa: PLC0415 -- lazy: loads h5py
 
     check_side_files(output, force)
-    from orbitsim.preflight import check_disk, check_initial_state, check_overlaps
 
     # The checks `orbitsim validate` makes too (orbitsim.preflight): a first sample that is not
     # finite, bodies that overlap with nothing to resolve it, or a trace that does not fit, is
@@ -142,8 +143,6 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
     SimulationError
         If the simulation rejects the input (nothing is written).
     """
-    from orbitsim.io.lock import hold_output
-
     output = Path(output) if output is not None else default_output(scenario)
     _check_path(scenario, output)
     with hold_output(output):  # before anything at or beside the output is looked at or touched
@@ -163,7 +162,7 @@ def _run_locked(scenario: Scenario, output: Path, force: bool, progress: Callabl
                 threads: int | None, on_chunk: Callable[[Simulation, SampleChunk], None] | None,
                 stop: Callable[[], bool] | None, handle_signals: bool, start: RunStart | None,
                 on_compile: Callable[[str], None] | None) -> RunSummary:
-    from orbitsim.checkpoint.sinks import open_sink, remove_side_files
+    from orbitsim.checkpoint.sinks import open_sink, remove_side_files  # noqa: PLC0415 -- lazy: loads h5py
 
     plan = scenario.sample_plan()
     existed = output.exists()

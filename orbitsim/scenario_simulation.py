@@ -33,7 +33,7 @@ def scenario_forces(scenario: Any) -> Any:
     the forces package is imported only when there are some."""
     if not getattr(scenario, "forces", ()):
         return None
-    from orbitsim.scenario.forces import force_set
+    from orbitsim.scenario.forces import force_set  # noqa: PLC0415 -- lazy: off `orbitsim run`
 
     return force_set(scenario)
 
@@ -43,7 +43,7 @@ def scenario_simulation(scenario: Scenario, threads: int | None = None, *, eleme
     """The engine for ``scenario``, from its bodies at ``t_start``, or from ``start`` = (masses,
     positions, velocities (N, 3), radii, t0) for a run that continues elsewhere (its work is then
     the caller's to restore). ``elements``: the primary of recorded orbital elements, if any."""
-    from orbitsim.simulation import Simulation
+    from orbitsim.simulation import Simulation  # noqa: PLC0415 -- lazy: loads numba
 
     sc = scenario
     masses, positions, velocities, radii, t0 = start or (sc.masses, sc.positions, sc.velocities, sc.radii, sc.t_start)
@@ -60,7 +60,7 @@ def install(sim: Simulation, s: Scenario) -> None:
     """Put ``s``'s integrator state into ``sim``'s work (a new run), when it applies."""
     if not applies(s):
         return
-    from orbitsim.integrators.wisdom_holman import restore_internal_state
+    from orbitsim.integrators.wisdom_holman import restore_internal_state  # noqa: PLC0415 -- lazy: loads numba
 
     state = s.integrator_state
     restore_internal_state(sim.work, {
@@ -74,8 +74,8 @@ def state_from_checkpoint(s: Scenario, checkpoint: Checkpoint, step: int, positi
     the checkpoint of the run ``s`` describes; None when the checkpoint holds another step's state."""
     if s.integrator not in STATEFUL or checkpoint.state.steps_done != step:
         return None
-    from orbitsim.checkpoint.state import restore_work
-    from orbitsim.integrators.wisdom_holman import make_work
+    from orbitsim.checkpoint.state import restore_work  # noqa: PLC0415 -- lazy: loads h5py
+    from orbitsim.integrators.wisdom_holman import make_work  # noqa: PLC0415 -- lazy: loads numba
 
     work = make_work(s.masses, s.G, s.integrator_settings)
     if not restore_work(work, checkpoint.state):
@@ -100,7 +100,7 @@ def state_by_replay(s: Scenario, step: int, positions: np.ndarray, velocities: n
 
 def _state_at(work: tuple[Any, ...], positions: np.ndarray, velocities: np.ndarray) -> dict[str, Any] | None:
     """The map's state in ``work`` if it was synchronised to exactly ``positions``, ``velocities``."""
-    from orbitsim.integrators.wisdom_holman import internal_state
+    from orbitsim.integrators.wisdom_holman import internal_state  # noqa: PLC0415 -- lazy: loads numba
 
     arrays = internal_state(work)
     phase = int(arrays["phase"][0])

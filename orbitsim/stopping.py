@@ -137,7 +137,7 @@ def _kernel_thread() -> ThreadPoolExecutor:
 
 
 def _in_kernel_thread(call: Callable[[], T], threads: int) -> T:
-    import numba
+    import numba  # noqa: PLC0415 -- lazy: loads numba
 
     numba.set_num_threads(threads)  # Numba's thread count is per calling thread
     return call()
@@ -164,7 +164,7 @@ def run_interruptible(call: Callable[[], T], threads: int, restore: Callable[[],
     Cost: one hand-off to the kernel thread and back, 50-250 us a call on a busy 2-core machine;
     callers use it where one call can be long (large N), and their calls then last ~0.2 s or one step.
     """
-    from orbitsim._jit import stop_kernels, stop_sequence
+    from orbitsim._jit import stop_kernels, stop_sequence  # noqa: PLC0415 -- lazy: loads numba
 
     if threading.current_thread() is not threading.main_thread():
         while True:

@@ -51,8 +51,8 @@ class FrameDrawer:
 
     def __init__(self, source: Source, states: FrameStates, view: str, trail: int, follow: int | None,
                  size: tuple[int, int] = (960, 720)) -> None:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415 -- lazy: loads matplotlib
+        from matplotlib.figure import Figure  # noqa: PLC0415 -- lazy: loads matplotlib
 
         self.source, self.states, self.trail = source, states, trail
         self.axes = AXES[view]

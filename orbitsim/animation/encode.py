@@ -68,7 +68,7 @@ def write_movie(frames: Iterable[np.ndarray], target: Path, fps: float, size: tu
 
 
 def _write_mp4(frames: Iterable[np.ndarray], path: Path, fps: float, size: tuple[int, int]) -> None:
-    import imageio_ffmpeg
+    import imageio_ffmpeg  # noqa: PLC0415 -- lazy: loads imageio_ffmpeg
 
     # yuv420p is what every player decodes; it needs even sides, and macro_block_size=16 would
     # silently rescale a size that is not a multiple of 16, so the drawer's sizes are (960x720).
@@ -84,7 +84,7 @@ def _write_mp4(frames: Iterable[np.ndarray], path: Path, fps: float, size: tuple
 
 
 def _write_gif(frames: Iterable[np.ndarray], path: Path, fps: float) -> None:
-    from PIL import Image
+    from PIL import Image  # noqa: PLC0415 -- lazy: loads PIL
 
     images = [Image.fromarray(frame).convert("P", palette=Image.Palette.ADAPTIVE, colors=GIF_COLORS)
               for frame in frames]

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 
 from orbitsim.animation.loop import FramePlan, Timing, interpolate, plan_frames
+from orbitsim.io.schema import TraceError, py_value
+from orbitsim.units import UNIT_SYSTEMS
 
 __all__ = ["TRAIL_POINTS", "FrameStates", "Source", "body_index", "frame_states", "scenario_source", "trace_source"]
 
@@ -75,8 +77,6 @@ class FrameStates:
 def scenario_source(scenario: Any) -> Source:
     """A loaded scenario as a movie's source; its loop step is its fixed dt (an adaptive scheme's:
     its output grid, on which its states land exactly)."""
-    from orbitsim.units import UNIT_SYSTEMS
-
     system = UNIT_SYSTEMS.get(str(scenario.units))
     return Source(f"{scenario.name}: {scenario.integrator}", tuple(scenario.names), np.asarray(scenario.masses),
                   system.time if system else "", float(scenario.dt), float(scenario.grid_dt), int(scenario.steps),
@@ -85,11 +85,9 @@ def scenario_source(scenario: Any) -> Source:
 
 def trace_source(path: str) -> Source:
     """A trace as a movie's source; raises TraceError (one line) when it cannot play one."""
-    import h5py
+    import h5py  # noqa: PLC0415 -- lazy: loads h5py
 
-    from orbitsim.io.schema import TraceError, py_value
-    from orbitsim.io.trace import open_trace_summary
-    from orbitsim.units import UNIT_SYSTEMS
+    from orbitsim.io.trace import open_trace_summary  # noqa: PLC0415 -- lazy: loads h5py
 
     summary = open_trace_summary(path)
     attrs = summary["attrs"]
@@ -149,7 +147,7 @@ def frame_states(source: Source, timing: Timing, trail_points: int = TRAIL_POINT
 
 def _trace_states(source: Source, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """The samples at loop states ``wanted`` (sample indices), read row by row set."""
-    import h5py
+    import h5py  # noqa: PLC0415 -- lazy: loads h5py
 
     with h5py.File(source.trace, "r") as f:
         positions = f["positions"][np.asarray(wanted), :, :]
@@ -159,8 +157,8 @@ def _trace_states(source: Source, wanted: np.ndarray) -> tuple[np.ndarray, np.nd
 
 def _scenario_states(scenario: Any, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, str]:
     """Step the scenario's engine to each of the ``wanted`` steps, recording the states there."""
-    from orbitsim.results import energy_scale, relative_energy_error
-    from orbitsim.scenario_simulation import scenario_simulation
+    from orbitsim.results import energy_scale, relative_energy_error  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.scenario_simulation import scenario_simulation  # noqa: PLC0415 -- lazy: loads yaml
 
     sc = scenario
     sim = scenario_simulation(sc)  # the engine `orbitsim run` steps, so the frames show the run's states

@@ -117,7 +117,7 @@ def _signals_ignored() -> Iterator[None]:
 
 
 def _local_cluster(plan: ClusterPlan) -> Any:
-    from distributed import LocalCluster
+    from distributed import LocalCluster  # noqa: PLC0415 -- lazy: loads yaml, numpy, distributed
 
     return LocalCluster(
         n_workers=plan.workers,
@@ -153,7 +153,7 @@ def open_client(scheduler: str | None, plan: ClusterPlan | None = None) -> Itera
     ClusterError
         If the scheduler cannot be reached or no worker joins within :data:`WORKER_WAIT_S`.
     """
-    from distributed import Client
+    from distributed import Client  # noqa: PLC0415 -- lazy: loads yaml, numpy, distributed
 
     cluster = None
     try:

@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from orbitsim._version import __version__
+from orbitsim.batch.cluster import ClusterError, open_client, plan_local
 from orbitsim.batch.signals import interrupt_once
 from orbitsim.batch.summary import write_csv, write_h5
 from orbitsim.batch.sweep import Case, InvalidCase, Sweep
@@ -87,7 +89,7 @@ def clear_abandoned(outdir: Path, cases: list[Case]) -> int:
     Without this, a case whose run completed but was killed before it removed its lock, or whose
     trace a rerun reuses, kept the stale lock for good.
     """
-    from orbitsim.io.lock import clear_abandoned_lock
+    from orbitsim.io.lock import clear_abandoned_lock  # noqa: PLC0415 -- lazy: loads numpy
 
     return sum(clear_abandoned_lock(trace_path_for(outdir, case)) for case in cases)
 
@@ -99,7 +101,7 @@ def trace_path_for(outdir: Path, case: Case) -> Path:
 
 def completed_result(path: Path, case: Case) -> dict[str, Any] | None:
     """The result of ``case`` read from its trace, if the trace is complete and matches its scenario."""
-    from orbitsim.io.trace import TraceError
+    from orbitsim.io.trace import TraceError  # noqa: PLC0415 -- lazy: loads h5py
 
     if not path.is_file():
         return None
@@ -184,8 +186,6 @@ def run_sweep(
         When the cluster cannot be started or reached, or a worker lacks this orbitsim; nothing
         has been written then.
     """
-    from orbitsim.batch.cluster import ClusterError
-
     outdir = Path(outdir).resolve()
     clear_abandoned(outdir, sweep.cases)  # what a killed sweep left: its runs' processes are gone
     rows: dict[int, dict[str, Any]] = {case.index: _invalid_row(case) for case in sweep.invalid}
@@ -265,8 +265,6 @@ def _run_pending(
     progress: Progress | None,
     on_start: Callable[[int, int, str], None] | None,
 ) -> None:
-    from orbitsim.batch.cluster import open_client, plan_local
-
     if client is not None:
         _collect(client, pending, outdir, rows, threads, progress, on_start, "the given Dask client")
         return
@@ -324,7 +322,7 @@ def _results(futures: dict[Any, Case]) -> Iterator[tuple[Any, dict[str, Any]]]:
     so a sweep hung forever after a worker was killed (reproduced under load). A fetch that
     finds the result gone again within ``RESULT_WAIT_S`` goes back to the pending set.
     """
-    from distributed import TimeoutError as DaskTimeout
+    from distributed import TimeoutError as DaskTimeout  # noqa: PLC0415 -- lazy: loads yaml, numpy, distributed
 
     pending = dict.fromkeys(futures)
     while pending:
@@ -348,9 +346,6 @@ def _check_workers(client: Any) -> None:
 
     A mismatch would make some runs differ from others, or fail every run on one worker.
     """
-    from orbitsim._version import __version__
-    from orbitsim.batch.cluster import ClusterError
-
     answers = client.run(warm_up, on_error="return")
     for worker, answer in sorted(answers.items()):
         if isinstance(answer, BaseException):
@@ -361,8 +356,6 @@ def _check_workers(client: Any) -> None:
 
 
 def _write_summaries(outcome: SweepOutcome) -> list[Path]:
-    from orbitsim._version import __version__
-
     attrs = {"sweep_name": outcome.sweep.name, "sweep_file": outcome.sweep.file,
              "sweep_yaml": outcome.sweep.text, "orbitsim_version": __version__,
              "runs": len(outcome.rows), "interrupted": outcome.interrupted}

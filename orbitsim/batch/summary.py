@@ -96,7 +96,7 @@ def _cell(value: Any) -> str:
 
 def write_csv(path: str | os.PathLike, rows: Sequence[Mapping[str, Any]], params: Sequence[str]) -> Path:
     """Write ``rows`` (dicts with ``case``, ``run_id``, ``params`` and the result columns) as CSV."""
-    from orbitsim.io.h5safe import io_failure
+    from orbitsim.io.h5safe import io_failure  # noqa: PLC0415 -- lazy: loads h5py
 
     final = Path(path)
     tmp = final.with_name(final.name + ".tmp")
@@ -118,7 +118,7 @@ def write_csv(path: str | os.PathLike, rows: Sequence[Mapping[str, Any]], params
 
 def _param_array(values: list[Any]) -> Any:
     """A numpy column for one parameter: bool, int64 or float64 when every value allows, else text."""
-    import numpy as np
+    import numpy as np  # noqa: PLC0415 -- lazy: loads numpy
 
     present = [v for v in values if v is not None]
     if present and all(isinstance(v, bool) for v in present) and len(present) == len(values):
@@ -132,7 +132,7 @@ def _param_array(values: list[Any]) -> Any:
 
 
 def _column_array(name: str, kind: type, rows: Sequence[Mapping[str, Any]]) -> Any:
-    import numpy as np
+    import numpy as np  # noqa: PLC0415 -- lazy: loads numpy
 
     values = [row.get(name) for row in rows]
     if kind is float or kind is Count:  # a count is float64 here, so that a missing one can be NaN
@@ -155,9 +155,9 @@ def write_h5(
     The root attribute ``columns`` lists the CSV headers in order and ``params`` the swept key
     paths; text columns are variable-length UTF-8.
     """
-    import h5py
+    import h5py  # noqa: PLC0415 -- lazy: loads h5py
 
-    from orbitsim.io.h5safe import in_memory, io_failure, write_image
+    from orbitsim.io.h5safe import in_memory, io_failure, write_image  # noqa: PLC0415 -- lazy: loads h5py
 
     final = Path(path)
     tmp = final.with_name(final.name + ".tmp")

@@ -134,8 +134,8 @@ def load_sweep(path: str | Path, *, skip_invalid: bool = False) -> Sweep:
         If the file is unreadable, malformed, or any case is not a valid scenario (with
         ``skip_invalid``: if no case is).
     """
-    from orbitsim.scenario import ScenarioError
-    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.scenario import ScenarioError  # noqa: PLC0415 -- lazy: loads yaml, numpy
+    from orbitsim.scenario.yamlio import parse_yaml  # noqa: PLC0415 -- lazy: loads yaml, numpy
 
     try:
         found = locate(SWEEPS, path)
@@ -253,8 +253,8 @@ def _base_document(base: Any, file: str) -> tuple[dict[str, Any], str]:
     A string is a path relative to the sweep file, else relative to the working directory, else
     the name of a bundled scenario (``orbitsim list scenarios``).
     """
-    from orbitsim.scenario import ScenarioError, bundled_scenarios
-    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.scenario import ScenarioError, bundled_scenarios  # noqa: PLC0415 -- lazy: loads yaml, numpy
+    from orbitsim.scenario.yamlio import parse_yaml  # noqa: PLC0415 -- lazy: loads yaml, numpy
 
     if base is None:
         raise SweepError(file, "base", "missing: name a bundled scenario, a scenario file, or give a mapping")
@@ -284,7 +284,7 @@ def _base_document(base: Any, file: str) -> tuple[dict[str, Any], str]:
 def _resolve(base: tuple[dict[str, Any], str], settings: dict[str, tuple[Any, str]], file: str,
              index: int) -> Any:
     """Apply one case's settings to a copy of the base document and validate it as a scenario."""
-    from orbitsim.scenario import ScenarioError, scenario_from_dict
+    from orbitsim.scenario import ScenarioError, scenario_from_dict  # noqa: PLC0415 -- lazy: loads yaml, numpy
 
     doc = copy.deepcopy(base[0])
     for path, (value, where) in settings.items():

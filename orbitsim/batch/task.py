@@ -19,13 +19,15 @@ import os
 import socket
 from typing import Any
 
+from orbitsim._version import __version__
+
 __all__ = ["EVENT_COLUMNS", "failed_result", "run_case", "run_error", "trace_result", "warm_up", "worker_label"]
 
 
 def worker_label() -> str:
     """Address of the Dask worker running the caller, or ``host:pid`` outside a worker."""
     try:
-        from distributed import get_worker
+        from distributed import get_worker  # noqa: PLC0415 -- lazy: loads yaml, numpy, distributed
 
         return str(get_worker().address)
     except (ImportError, ValueError):
@@ -78,7 +80,7 @@ def failed_result(err: BaseException | str, worker: str = "") -> dict[str, Any]:
 
 def _event_counts(f: Any) -> dict[str, int]:
     """The trace's events by summary column; 0 each for a run without ``events:``."""
-    from orbitsim.io.trace_events import event_counts
+    from orbitsim.io.trace_events import event_counts  # noqa: PLC0415 -- lazy: loads numpy
 
     counts = event_counts(f) or {}
     return {column: int(counts.get(kind, 0)) for column, kind in EVENT_COLUMNS}
@@ -100,10 +102,10 @@ def trace_result(path: str | os.PathLike, *, require_sha256: str | None = None) 
     orbitsim.io.trace.TraceError
         If ``path`` is not a readable orbitsim trace.
     """
-    import h5py
-    import numpy as np
+    import h5py  # noqa: PLC0415 -- lazy: loads h5py
+    import numpy as np  # noqa: PLC0415 -- lazy: loads numpy
 
-    from orbitsim.io.trace import TRACE_FORMAT, TRACE_VERSION, TraceError
+    from orbitsim.io.trace import TRACE_FORMAT, TRACE_VERSION, TraceError  # noqa: PLC0415 -- lazy: loads h5py
 
     try:
         with h5py.File(path, "r") as f:
@@ -140,9 +142,8 @@ def warm_up() -> str:
     the ~1 s import in its wall time and steps per second, and so that a worker with a missing or
     different orbitsim is reported before any run is submitted.
     """
-    import orbitsim.integrators.registry
-    import orbitsim.runner  # noqa: F401
-    from orbitsim._version import __version__
+    import orbitsim.integrators.registry  # noqa: PLC0415 -- lazy: loads numba
+    import orbitsim.runner  # noqa: F401, PLC0415 -- lazy: loads yaml, numpy
 
     return __version__
 
@@ -167,7 +168,7 @@ def run_case(scenario: Any, trace_path: str, threads: int | None = None) -> dict
     """
     worker = worker_label()
     try:
-        from orbitsim.runner import run_scenario
+        from orbitsim.runner import run_scenario  # noqa: PLC0415 -- lazy: loads yaml, numpy
 
         run_scenario(scenario, trace_path, force=True, threads=threads, handle_signals=False)
         result = trace_result(trace_path)

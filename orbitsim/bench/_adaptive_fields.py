@@ -113,7 +113,7 @@ def per_n_system(r: Reader) -> ReadOne:
         if name in GENERATED_SYSTEMS:
             return name
         try:
-            from orbitsim.bench.systems import scenario_size
+            from orbitsim.bench.systems import scenario_size  # noqa: PLC0415 -- lazy: loads numpy
 
             size = scenario_size(name)
         except Exception as err:  # any failure to load it is a matrix error at this key

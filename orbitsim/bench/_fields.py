@@ -120,7 +120,7 @@ class Reader:
     def integrator_names(self, g: Mapping[str, Any], key: str, path: str, default: list[str], *,
                          single: bool = False) -> list[str]:
         """orbitsim integrator names checked against the registry (``all`` allowed unless single)."""
-        from orbitsim.integrators.registry import UnknownIntegratorError, get_spec
+        from orbitsim.integrators.registry import UnknownIntegratorError, get_spec  # noqa: PLC0415 -- lazy: loads numba
 
         if single and isinstance(g.get(key), list):
             raise self.error(join(path, key), "expected one integrator name, got a list")
@@ -140,7 +140,7 @@ class Reader:
         if name in GENERATED_SYSTEMS:
             return name, None
         try:
-            from orbitsim.bench.systems import scenario_size
+            from orbitsim.bench.systems import scenario_size  # noqa: PLC0415 -- lazy: loads numpy
 
             return name, scenario_size(name)
         except Exception as err:  # any failure to load it is a matrix error at this key

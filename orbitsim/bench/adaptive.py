@@ -25,9 +25,14 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from orbitsim.bench._adaptive_fields import AdaptiveCase
+from orbitsim.bench.engines import jit_timed
+from orbitsim.bench.interleave import by_n, prepare, rounds
 from orbitsim.bench.stats import paired_median, summarise
 from orbitsim.bench.systems import System
+from orbitsim.reference.bridge import rebound_simulation
 
 __all__ = ["OrbitsimIAS15", "ReboundIAS15", "Timed", "run_adaptive_group"]
 
@@ -47,13 +52,13 @@ class OrbitsimIAS15:
         self.jit = "n/a"
 
     def _simulation(self, t_end: float) -> Any:
-        from orbitsim.simulation import Simulation
+        from orbitsim.simulation import Simulation  # noqa: PLC0415 -- lazy: loads numba
 
         s, c = self.system, self.case
         softening = c.softening if s.softening is None else s.softening
         settings = {"epsilon": c.epsilon, "first_dt": s.dt or c.first_dt, "t_end": t_end}
         # dt is the output grid of an adaptive scheme: one interval, sampled at 0 and t_end only.
-        from orbitsim._jit import set_num_threads
+        from orbitsim._jit import set_num_threads  # noqa: PLC0415 -- lazy: loads numba
 
         # Numba's count (c.threads, else NUMBA_NUM_THREADS): a benchmark does not measure the load first.
         sim = Simulation(s.masses.copy(), s.positions.copy(), s.velocities.copy(), "ias15", t_end, s.G,
@@ -62,8 +67,6 @@ class OrbitsimIAS15:
         return sim
 
     def _run(self, sim: Any) -> None:
-        import numpy as np
-
         for _ in sim.chunks(np.array([0, 1], dtype=np.int64), record_positions=False):
             pass
         if sim.diverged:
@@ -71,15 +74,13 @@ class OrbitsimIAS15:
 
     def first_call(self) -> float:
         """Build and integrate one first trial step's span; returns the seconds (JIT included)."""
-        from orbitsim.bench.engines import jit_timed
-
         first_span = self.system.dt or self.case.first_dt
         elapsed, self.jit = jit_timed("ias15", lambda: self._run(self._simulation(first_span)))
         return elapsed
 
     def once(self) -> Timed:
         """Integrate the whole span from the initial state; (wall, CPU, accepted steps, counters)."""
-        from orbitsim.integrators.ias15 import counters
+        from orbitsim.integrators.ias15 import counters  # noqa: PLC0415 -- lazy: loads numba
 
         sim = self._simulation(self.case.t_end)
         cpu, start = time.process_time(), time.perf_counter()
@@ -101,8 +102,6 @@ class ReboundIAS15:
         self.jit = "n/a"
 
     def _simulation(self) -> Any:
-        from orbitsim.reference.bridge import rebound_simulation
-
         s, c = self.system, self.case
         softening = c.softening if s.softening is None else s.softening
         sim = rebound_simulation(s.masses, s.positions, s.velocities, G=s.G, softening=softening,
@@ -135,8 +134,6 @@ def _make(case: AdaptiveCase, system: System) -> Stepper:
 
 def _prepare(cases: list[AdaptiveCase], threads: tuple[int, int]) -> tuple[list, list[dict]]:
     """Build, compile and warm up each case of one N; (ready cases, skipped cases)."""
-    from orbitsim.bench.interleave import prepare
-
     # Only orbitsim is warmed up: its first whole span still loads caches and touches memory,
     # while REBOUND's C code has nothing to load, and at N = 1000 its warm-up would cost as
     # much as a repeat.
@@ -178,8 +175,6 @@ def _pair_with_rebound(records: list[dict[str, Any]]) -> None:
 def _run_n(cases: list[AdaptiveCase], progress: Callable[[str], None],
            threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
     """Every case of one N: prepared, then interleaved timed repeats."""
-    from orbitsim.bench.interleave import rounds
-
     ready, skipped = _prepare(cases, threads)
     times = rounds(ready)
     records = [_record(case, stepper, first, t) for (case, stepper, first), t in zip(ready, times, strict=True)]
@@ -198,6 +193,4 @@ def run_adaptive_group(cases: list[AdaptiveCase], progress: Callable[[str], None
 
     ``threads`` is (the default thread count for cases that name none, NUMBA_NUM_THREADS).
     """
-    from orbitsim.bench.interleave import by_n
-
     return by_n(cases, lambda of_n: _run_n(of_n, progress, threads))

@@ -39,7 +39,7 @@ def _jit_counts(dispatcher: Any) -> tuple[int, int]:
 def jit_timed(integrator: str, call: Callable[[], None]) -> tuple[float, str]:
     """The seconds ``call()`` takes and how the integrator's jitted ``run`` was made ready in it:
     ``compiled``, loaded from the ``cache``, or already ``in-memory``."""
-    from orbitsim.integrators.registry import get_integrator
+    from orbitsim.integrators.registry import get_integrator  # noqa: PLC0415 -- lazy: loads numba
 
     run = get_integrator(integrator).run
     before = _jit_counts(run)
@@ -63,7 +63,7 @@ class OrbitsimStepper:
         self.jit = "n/a"
 
     def _threads(self) -> None:
-        from orbitsim._jit import set_num_threads
+        from orbitsim._jit import set_num_threads  # noqa: PLC0415 -- lazy: loads numba
 
         self.threads_used = set_num_threads(self.case.threads)
 
@@ -73,7 +73,7 @@ class OrbitsimStepper:
         return elapsed
 
     def _build_and_step(self) -> None:
-        from orbitsim.simulation import Simulation
+        from orbitsim.simulation import Simulation  # noqa: PLC0415 -- lazy: loads numba
 
         s, c = self.system, self.case
         self._threads()
@@ -111,7 +111,7 @@ class ReboundStepper:
 
     def first_call(self) -> float:
         """Build the REBOUND simulation and take one step; returns the seconds."""
-        import rebound
+        import rebound  # noqa: PLC0415 -- lazy: loads rebound
 
         s, c = self.system, self.case
         start = time.perf_counter()

@@ -47,7 +47,7 @@ def prepare(cases: list[Any], threads: tuple[int, int], make: Callable[[Any, Any
             key: Callable[[Any], str] = lambda c: c.case_id) -> tuple[list[Ready], list[dict]]:
     """Build each usable case's engine on its system (built once per system), make its first call
     and its ``warmups(case)`` untimed repeats; returns (ready cases, skipped cases)."""
-    from orbitsim.bench.systems import build_system
+    from orbitsim.bench.systems import build_system  # noqa: PLC0415 -- lazy: loads numpy
 
     systems: dict[str, Any] = {}
     ready: list[Ready] = []

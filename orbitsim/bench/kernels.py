@@ -16,11 +16,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import numba
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, set_num_threads
 from orbitsim.bench.matrix import Group
 from orbitsim.bench.stats import summarise
+from orbitsim.bench.systems import build_system
 from orbitsim.physics import gravity
 
 __all__ = ["ALL_PAIRS_MAX_N", "run_kernels"]
@@ -53,9 +55,6 @@ def _repeat_serial(kernel, reps, pos, m, eps2, acc):
 
 
 def _evaluators(n: int, threads: int) -> dict[str, Callable[[int], None]]:
-    from orbitsim._jit import set_num_threads
-    from orbitsim.bench.systems import build_system
-
     s = build_system("plummer", n)
     pos = np.ascontiguousarray(s.positions.T)
     m, acc, eps2 = s.masses, np.zeros((3, n)), 1e-4
@@ -82,8 +81,6 @@ def _time(fn: Callable[[int], None], reps: int) -> float:
 
 def run_kernels(group: Group) -> dict[str, Any]:
     """Pairs/s of each kernel at each N (interleaved repeats) and the crossovers found."""
-    import numba
-
     p = group.params
     threads = int(p["threads"] or numba.get_num_threads())
     rows: list[dict[str, Any]] = []

@@ -179,7 +179,7 @@ def load_matrix(path: str | Path) -> BenchMatrix:
 
     Raises :class:`BenchMatrixError` (one line) on any problem.
     """
-    import yaml
+    import yaml  # noqa: PLC0415 -- lazy: loads yaml
 
     try:
         found = locate(MATRICES, path)
@@ -267,7 +267,7 @@ def _read_steps(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
 
 def _fixed_step_names(r: Reader, g: Mapping[str, Any], path: str) -> tuple[str, ...]:
     """The ``integrators`` of a steps group; an adaptive scheme is refused (see :func:`_orbitsim_names`)."""
-    from orbitsim.integrators.registry import get_spec
+    from orbitsim.integrators.registry import get_spec  # noqa: PLC0415 -- lazy: loads numba
 
     names = r.integrator_names(g, "integrators", path, ["verlet"])
     for k, name in enumerate(names):
@@ -317,7 +317,7 @@ _READERS: dict[str, Callable[[Reader, Mapping[str, Any], str], dict[str, Any]]] 
 
 
 def _registry_lookup(name: str) -> tuple[str, int]:
-    from orbitsim.integrators.registry import get_spec
+    from orbitsim.integrators.registry import get_spec  # noqa: PLC0415 -- lazy: loads numba
 
     spec = get_spec(name)
     return spec.name, spec.force_evals
@@ -326,7 +326,7 @@ def _registry_lookup(name: str) -> tuple[str, int]:
 def _orbitsim_names(group: Group, lookup: Callable[[str], tuple[str, int]]) -> list[tuple[str, int]]:
     names = group.params["integrators"]
     if tuple(names) == ("all",):
-        from orbitsim.integrators.registry import INTEGRATORS
+        from orbitsim.integrators.registry import INTEGRATORS  # noqa: PLC0415 -- lazy: loads numba
 
         # An adaptive scheme (IAS15) takes as many steps of its own as each grid interval needs:
         # timing "dt steps" of it would report a grid interval as a step. The adaptive kind

@@ -27,6 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.bench.systems import planets
+from orbitsim.initial_conditions.generators import plummer
+
 __all__ = ["main", "rss_mb"]
 
 
@@ -50,8 +53,7 @@ def rss_mb() -> tuple[float, float]:
 
 def probe_large(n: int, steps: int) -> dict[str, Any]:
     """Peak RSS of an N-body Plummer run of ``steps`` steps (after a warm-up that loads the kernels)."""
-    from orbitsim.initial_conditions.generators import plummer
-    from orbitsim.simulation import simulate
+    from orbitsim.simulation import simulate  # noqa: PLC0415 -- lazy: loads numba
 
     m2, x2, v2 = plummer(2, seed=1)
     simulate(m2, x2, v2, integrator="verlet", dt=1e-3, steps=2, record_positions=False)
@@ -67,8 +69,7 @@ def probe_large(n: int, steps: int) -> dict[str, Any]:
 
 
 def _trace_scenario(n: int, samples: int, every: int) -> Any:
-    from orbitsim.bench.systems import planets
-    from orbitsim.scenario import scenario_from_dict
+    from orbitsim.scenario import scenario_from_dict  # noqa: PLC0415 -- lazy: loads yaml
 
     m, x, v = planets(n, seed=1)
     bodies = [{"name": f"b{k}", "m": float(m[k]), "x": x[k].tolist(), "v": v[k].tolist()} for k in range(n)]
@@ -104,7 +105,7 @@ def probe_trace(n: int, samples: int, every: int, outdir: Path) -> dict[str, Any
     output = outdir / "memprobe_trace.h5"
     try:
         if importlib.util.find_spec("orbitsim.runner") and importlib.util.find_spec("orbitsim.scenario"):
-            from orbitsim.runner import run_scenario
+            from orbitsim.runner import run_scenario  # noqa: PLC0415 -- lazy: loads yaml
 
             def on_chunk(_sim: Any, chunk: Any) -> None:
                 watch(state["samples"] + len(chunk))
@@ -125,9 +126,8 @@ def probe_trace(n: int, samples: int, every: int, outdir: Path) -> dict[str, Any
 
 
 def _trace_fallback(n: int, samples: int, every: int, output: Path, watch: Any) -> int:
-    from orbitsim.bench.systems import planets
-    from orbitsim.io.trace import TraceWriter
-    from orbitsim.simulation import Simulation
+    from orbitsim.io.trace import TraceWriter  # noqa: PLC0415 -- lazy: loads h5py
+    from orbitsim.simulation import Simulation  # noqa: PLC0415 -- lazy: loads numba
 
     m, x, v = planets(n, seed=1)
     sim = Simulation(m, x, v, "verlet", 1e-3)

@@ -25,7 +25,7 @@ def _label(case: dict[str, Any]) -> str:
 
 
 def _throughput(doc: dict[str, Any], path: Path) -> Path | None:
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 -- lazy: loads matplotlib
 
     lines: dict[str, list[tuple[int, dict[str, float]]]] = defaultdict(list)
     for c in doc.get("cases", []):
@@ -63,8 +63,8 @@ def _throughput(doc: dict[str, Any], path: Path) -> Path | None:
 
 
 def _small_n(doc: dict[str, Any], path: Path) -> Path | None:
-    import matplotlib.pyplot as plt
-    import numpy as np
+    import matplotlib.pyplot as plt  # noqa: PLC0415 -- lazy: loads matplotlib
+    import numpy as np  # noqa: PLC0415 -- lazy: loads numpy
 
     cases = [c for c in doc.get("cases", []) if c["n"] <= SMALL_N_MAX]
     if not cases:
@@ -102,7 +102,7 @@ def _small_n(doc: dict[str, Any], path: Path) -> Path | None:
 
 def write_figures(doc: dict[str, Any], outdir: Path) -> list[Path]:
     """Write the figures that the results have data for; returns their paths."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 -- lazy: loads matplotlib
 
     matplotlib.use("Agg")
     made = [_throughput(doc, outdir / "throughput.png"), _small_n(doc, outdir / "small_n.png")]

@@ -30,6 +30,7 @@ import numpy as np
 
 from orbitsim.bench.matrix import Group
 from orbitsim.bench.stats import paired_median, summarise
+from orbitsim.bench.systems import build_system, planets
 
 __all__ = ["cached_functions", "run_memory", "run_sampling", "run_startup"]
 
@@ -48,9 +49,7 @@ def _orbitsim_command() -> list[str]:
 
 def _tiny_scenario(folder: Path, integrator: str, n: int, steps: int) -> Path:
     """A scenario file of ``n`` bodies (a star and planets) that runs ``steps`` steps."""
-    import yaml
-
-    from orbitsim.bench.systems import planets
+    import yaml  # noqa: PLC0415 -- lazy: loads yaml
 
     m, x, v = planets(n, seed=1)
     doc = {"name": "bench_startup", "units": "nbody", "integrator": integrator, "dt": 0.001,
@@ -107,7 +106,7 @@ def cached_functions(cache_dir: Path) -> list[str]:
 def _foreign_integrators(functions: list[str], integrator: str) -> list[str]:
     """Functions of integrator modules other than the one used (and the shared helpers). A scheme
     that reuses another family's kernels (trace's full_ias15 step, the ias15 core) lists those too."""
-    from orbitsim.integrators.registry import INTEGRATORS, get_spec
+    from orbitsim.integrators.registry import INTEGRATORS, get_spec  # noqa: PLC0415 -- lazy: loads numba
 
     used = get_spec(integrator).module.rsplit(".", 1)[-1]
     schemes = {spec.module.rsplit(".", 1)[-1] for spec in INTEGRATORS} - {used}
@@ -143,8 +142,7 @@ def _cold_start(folder: Path, p: dict[str, Any], env: dict[str, str]) -> dict[st
 
 def run_sampling(group: Group) -> dict[str, Any]:
     """Time per step with a sample every K steps against sampling only the first and last step."""
-    from orbitsim.bench.systems import build_system
-    from orbitsim.simulation import simulate
+    from orbitsim.simulation import simulate  # noqa: PLC0415 -- lazy: loads numba
 
     p = group.params
     s = build_system(p["system"], p["n"], seed=p["seed"])

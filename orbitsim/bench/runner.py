@@ -18,8 +18,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from orbitsim.bench.interleave import by_n, prepare, rounds
 from orbitsim.bench.matrix import BenchMatrix, Group, StepsCase
+from orbitsim.bench.plots import write_figures
+from orbitsim.bench.report import markdown
 from orbitsim.bench.stats import scaled, summarise
+from orbitsim.bench.targets import evaluate_targets
+from orbitsim.provenance import provenance
 
 __all__ = ["SCHEMA", "machine_info", "quick_matrix", "run_matrix", "write_results"]
 
@@ -53,9 +58,7 @@ def quick_matrix(matrix: BenchMatrix) -> BenchMatrix:
 
 def machine_info(threads: int) -> dict[str, Any]:
     """Host, versions and thread settings (from :func:`orbitsim.provenance.provenance`)."""
-    import numba
-
-    from orbitsim.provenance import provenance
+    import numba  # noqa: PLC0415 -- lazy: loads numba
 
     info: dict[str, Any] = dict(provenance())
     info.update(threads=threads, numba_max_threads=int(numba.config.NUMBA_NUM_THREADS),
@@ -65,7 +68,7 @@ def machine_info(threads: int) -> dict[str, Any]:
 
 
 def _threading_layer() -> str:
-    import numba
+    import numba  # noqa: PLC0415 -- lazy: loads numba
 
     try:
         return str(numba.threading_layer())
@@ -90,8 +93,7 @@ def _case_record(case: StepsCase, stepper: Any, first: float, runs: list[tuple[f
 
 def _run_n(cases: list[StepsCase], progress: Progress, threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
     """Every case of one N: build and warm up each, then interleaved timed repeats."""
-    from orbitsim.bench.engines import make_stepper
-    from orbitsim.bench.interleave import prepare, rounds
+    from orbitsim.bench.engines import make_stepper  # noqa: PLC0415 -- lazy: loads numpy
 
     ready, skipped = prepare(cases, threads, make_stepper, key=lambda c: f"{c.case_id}/{c.steps}")
     records = []
@@ -105,14 +107,12 @@ def _run_n(cases: list[StepsCase], progress: Progress, threads: tuple[int, int])
 
 def _run_steps_group(group: Group, matrix: BenchMatrix, progress: Progress,
                      threads: tuple[int, int]) -> tuple[list, list]:
-    from orbitsim.bench.interleave import by_n
-
     cases = [c for c in matrix.steps_cases() if c.group == group.name]
     return by_n(cases, lambda of_n: _run_n(of_n, progress, threads), sorted({c.n for c in cases}))
 
 
 def _run_probe(group: Group, progress: Progress) -> dict[str, Any]:
-    from orbitsim.bench import kernels, probes
+    from orbitsim.bench import kernels, probes  # noqa: PLC0415 -- lazy: loads numba
 
     run = {"kernels": kernels.run_kernels, "startup": probes.run_startup, "sampling": probes.run_sampling,
            "memory": probes.run_memory}[group.kind]
@@ -132,11 +132,11 @@ def _run_timed_group(group: Group, matrix: BenchMatrix, progress: Progress,
     if group.kind == "steps":
         return ("cases", *_run_steps_group(group, matrix, progress, threads))
     if group.kind == "adaptive":
-        from orbitsim.bench.adaptive import run_adaptive_group
+        from orbitsim.bench.adaptive import run_adaptive_group  # noqa: PLC0415 -- lazy: loads numpy
 
         cases = [c for c in matrix.adaptive_cases() if c.group == group.name]
         return ("adaptive", *run_adaptive_group(cases, progress, threads))
-    from orbitsim.bench.trace import run_trace_group
+    from orbitsim.bench.trace import run_trace_group  # noqa: PLC0415 -- lazy: loads numpy
 
     cases = [c for c in matrix.trace_cases() if c.group == group.name]
     return ("trace", *run_trace_group(cases, progress, threads))
@@ -149,10 +149,10 @@ def run_matrix(matrix: BenchMatrix, *, threads: int | None = None, quick: bool =
     ``threads`` (else the matrix's ``threads``, else ``NUMBA_NUM_THREADS``) is the default for
     cases that do not name a thread count.
     """
-    import numba
+    import numba  # noqa: PLC0415 -- lazy: loads numba
 
-    from orbitsim._jit import set_num_threads
-    from orbitsim.bench.ceiling import measure_ceiling
+    from orbitsim._jit import set_num_threads  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.bench.ceiling import measure_ceiling  # noqa: PLC0415 -- lazy: loads numba
 
     say = progress or (lambda _msg: None)
     if quick:
@@ -180,7 +180,6 @@ def run_matrix(matrix: BenchMatrix, *, threads: int | None = None, quick: bool =
     doc["machine"]["load_average_end"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
     doc["started"] = _dt.datetime.fromtimestamp(started, _dt.UTC).isoformat(timespec="seconds")
     doc["wall_s"] = time.time() - started
-    from orbitsim.bench.targets import evaluate_targets
 
     doc["targets"] = evaluate_targets(doc)
     return doc
@@ -188,15 +187,11 @@ def run_matrix(matrix: BenchMatrix, *, threads: int | None = None, quick: bool =
 
 def write_results(doc: dict[str, Any], outdir: str | Path, *, plots: bool = True) -> list[Path]:
     """Write ``results.json``, ``results.md`` and (with ``plots``) the figures; returns the paths."""
-    from orbitsim.bench.report import markdown
-
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     written = [out / "results.json", out / "results.md"]
     written[0].write_text(json.dumps(doc, indent=1, sort_keys=False) + "\n", encoding="utf-8")
     written[1].write_text(markdown(doc), encoding="utf-8")
     if plots:
-        from orbitsim.bench.plots import write_figures
-
         written += write_figures(doc, out)
     return written

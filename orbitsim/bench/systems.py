@@ -23,6 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.initial_conditions.elements import elements_to_cartesian
+from orbitsim.initial_conditions.generators import plummer
+
 __all__ = ["System", "build_system", "planetesimals", "planets", "scenario_size"]
 
 #: Spacing of the planets' semi-major axes: wide enough (ratio 1.6 > the ~1.3 Hill-stability
@@ -109,8 +112,6 @@ def planetesimals(n: int, *, seed: int = 1, G: float = 1.0) -> tuple[np.ndarray,
 
     Returns (n,), (n, 3), (n, 3) C-contiguous, writable arrays; the same seed gives the same bits.
     """
-    from orbitsim.initial_conditions.elements import elements_to_cartesian
-
     rng = np.random.default_rng(seed)
     planets = DISC_PLANETS[: max(0, n - 1)]
     k = n - 1 - len(planets)
@@ -133,7 +134,7 @@ def planetesimals(n: int, *, seed: int = 1, G: float = 1.0) -> tuple[np.ndarray,
 
 
 def _load_scenario(name: str) -> Any:
-    from orbitsim.scenario import load_scenario
+    from orbitsim.scenario import load_scenario  # noqa: PLC0415 -- lazy: loads yaml
 
     return load_scenario(name)
 
@@ -146,8 +147,6 @@ def scenario_size(name: str) -> int:
 def build_system(name: str, n: int, *, seed: int = 1) -> System:
     """The initial state of system ``name`` with ``n`` bodies (``n`` is ignored for a scenario)."""
     if name == "plummer":
-        from orbitsim.initial_conditions.generators import plummer
-
         m, x, v = plummer(int(n), seed=seed)
         return System(name, m, np.ascontiguousarray(x), np.ascontiguousarray(v), 1.0)
     if name == "planets":

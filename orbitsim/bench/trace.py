@@ -35,8 +35,11 @@ from typing import Any
 import numpy as np
 
 from orbitsim.bench._trace_fields import TraceCase
+from orbitsim.bench.engines import jit_timed
+from orbitsim.bench.interleave import by_n, prepare, rounds
 from orbitsim.bench.stats import paired_median, summarise
 from orbitsim.bench.systems import System
+from orbitsim.reference.bridge import read_state, rebound_simulation
 
 __all__ = ["OrbitsimTrace", "ReboundTrace", "agreement", "run_trace_group", "whole_steps"]
 
@@ -75,7 +78,7 @@ class OrbitsimTrace(_Engine):
     engine = "orbitsim"
 
     def _simulation(self) -> Any:
-        from orbitsim.simulation import Simulation
+        from orbitsim.simulation import Simulation  # noqa: PLC0415 -- lazy: loads numba
 
         s = self.system
         return Simulation(s.masses.copy(), s.positions.copy(), s.velocities.copy(), "trace", self.dt, s.G,
@@ -89,14 +92,12 @@ class OrbitsimTrace(_Engine):
 
     def first_call(self) -> float:
         """Build and take one step; returns the seconds (JIT compilation or cache loading included)."""
-        from orbitsim.bench.engines import jit_timed
-
         elapsed, self.jit = jit_timed("trace", lambda: self._run(self._simulation(), 1))
         return elapsed
 
     def once(self) -> Timed:
         """Integrate the case's steps from the initial state; (wall, CPU, counters, final state)."""
-        from orbitsim.integrators.trace import counters
+        from orbitsim.integrators.trace import counters  # noqa: PLC0415 -- lazy: loads numba
 
         sim = self._simulation()
         cpu, start = time.process_time(), time.perf_counter()
@@ -111,8 +112,6 @@ class ReboundTrace(_Engine):
     engine = "rebound"
 
     def _simulation(self) -> Any:
-        from orbitsim.reference.bridge import rebound_simulation
-
         s = self.system
         return rebound_simulation(s.masses, s.positions, s.velocities, G=s.G, softening=self.softening, dt=self.dt,
                                   scheme="trace")
@@ -125,8 +124,6 @@ class ReboundTrace(_Engine):
 
     def once(self) -> Timed:
         """Integrate the case's steps from the initial state; (wall, CPU, {}, final state)."""
-        from orbitsim.reference.bridge import read_state
-
         sim = self._simulation()
         cpu, start = time.process_time(), time.perf_counter()
         sim.steps(self.steps)
@@ -185,8 +182,6 @@ def _pair_with_rebound(records: list[dict[str, Any]], states: list[tuple[np.ndar
 def _run_n(cases: list[TraceCase], progress: Callable[[str], None],
            threads: tuple[int, int]) -> tuple[list[dict], list[dict]]:
     """Every case of one N: prepared, then interleaved timed repeats."""
-    from orbitsim.bench.interleave import prepare, rounds
-
     ready, skipped = prepare(cases, threads, _make)  # both engines warmed up: the timing excludes start-up
     times = rounds(ready)
     records = [_record(case, engine, first, t) for (case, engine, first), t in zip(ready, times, strict=True)]
@@ -206,6 +201,4 @@ def run_trace_group(cases: list[TraceCase], progress: Callable[[str], None],
 
     ``threads`` is (the default thread count, NUMBA_NUM_THREADS); TRACE's cases run on one.
     """
-    from orbitsim.bench.interleave import by_n
-
     return by_n(cases, lambda of_n: _run_n(of_n, progress, threads))

@@ -24,7 +24,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from orbitsim.checkpoint.sinks import RunStart, check_side_files, remove_side_files
+from orbitsim.checkpoint.sinks import RunStart, check_side_files, remove_side_files, scenario_series
 from orbitsim.io.checkpoint import (
     Checkpoint,
     CheckpointError,
@@ -35,7 +35,10 @@ from orbitsim.io.checkpoint import (
     read_checkpoint,
     read_checkpoint_group,
 )
+from orbitsim.io.lock import describe_holder, hold_output, rerun_command
 from orbitsim.io.schema import OutputError
+from orbitsim.io.stored_scenario import read_scenario_bodies
+from orbitsim.io.trace import TraceError, open_trace
 
 if TYPE_CHECKING:
     from orbitsim.io.lock import OutputLock
@@ -93,9 +96,6 @@ def read_trace_state(path: Path) -> TraceState:
     TraceError
         If the file is missing, foreign or damaged (:class:`CheckpointError` for its group).
     """
-    from orbitsim.io.stored_scenario import read_scenario_bodies
-    from orbitsim.io.trace import TraceError, open_trace
-
     with open_trace(path) as f:
         try:
             attrs = {k: (v.decode() if isinstance(v, bytes) else v.item() if hasattr(v, "item") else v)
@@ -119,8 +119,8 @@ def stored_scenario(text: str, sha256: str, where: Path, source: str = "",
     """The scenario a checkpoint or trace stores, checked against its SHA-256; ``source`` is where
     it first came from (kept in the continued trace's ``scenario_source``); ``bodies``, a large
     scenario's rows stored beside its text (:mod:`orbitsim.io.stored_scenario`)."""
-    from orbitsim.scenario import ScenarioError
-    from orbitsim.scenario.loader import scenario_from_stored
+    from orbitsim.scenario import ScenarioError  # noqa: PLC0415 -- lazy: loads yaml
+    from orbitsim.scenario.loader import scenario_from_stored  # noqa: PLC0415 -- lazy: loads yaml
 
     label = f"{where} (stored scenario)"
     try:
@@ -156,7 +156,7 @@ def _short(value: Any) -> str:
 def _check_same(stored: Scenario, where: Path, scenario: Scenario | None, integrator: str | None,
                 ignore: tuple[str, ...] = ()) -> None:
     """Refuse another integrator or scenario than the stored one."""
-    from orbitsim.integrators.registry import canonical_name
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
     if integrator is not None and canonical_name(integrator) != stored.integrator:
         raise CheckpointError(f"{where}: the run was made with integrator {stored.integrator}; it cannot continue "
@@ -193,16 +193,12 @@ def prepare_resume(path: str | os.PathLike, *, scenario: Scenario | None = None,
         Nothing resumable, damaged or foreign files, a live writer, or a different
         scenario or integrator.
     """
-    from orbitsim.io.lock import hold_output
-
     output = resolve_output(path)
     with hold_output(output) as lock:  # refuses while another process writes the output
         return _plan_resume(output, lock, scenario, integrator)
 
 
 def _plan_resume(output: Path, lock: OutputLock, scenario: Scenario | None, integrator: str | None) -> Continuation:
-    from orbitsim.io.trace import TraceError
-
     trace: TraceState | None = None
     foreign = ""
     if output.exists():
@@ -222,8 +218,6 @@ def _plan_resume(output: Path, lock: OutputLock, scenario: Scenario | None, inte
 
 def _nothing_to_resume(output: Path, previous: dict[str, Any] | None) -> str:
     """Why a run left nothing to resume, from the files it left and its lock's record of it."""
-    from orbitsim.io.lock import describe_holder, rerun_command
-
     command = rerun_command(previous)
     again = f"run it again: `{command}`" if command else "run it again"
     if journal_path(output).exists():
@@ -255,7 +249,6 @@ def _from_checkpoint_file(output: Path, trace: TraceState | None, foreign: str, 
     if output.exists() and not (same_run or ckpt.force):
         why = f" ({foreign})" if foreign else ""
         raise CheckpointError(f"{output}: exists and is not this run's trace{why}; move it away, then resume")
-    from orbitsim.checkpoint.sinks import scenario_series
 
     series = scenario_series(stored)[0]
     journal = Journal(journal_path(output), journal_dtype(stored.n_bodies, bool(stored.record_positions), series),
@@ -331,8 +324,6 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
     OutputError
         If ``output`` exists (and is not ``source``) without ``force``.
     """
-    from orbitsim.io.lock import hold_output
-
     src = Path(source)
     dst = Path(output) if output is not None else src
     if dst.is_dir() or not dst.parent.is_dir():
@@ -344,8 +335,8 @@ def prepare_extension(source: str | os.PathLike, *, steps: int | None = None, t_
 def _option_times(stored: Scenario, t_end: float | str | None,
                   change: tuple[Any, ...]) -> tuple[float | None, tuple[Any, ...]]:
     """``--t-end`` and ``--dt`` given with a unit (``"100 yr"``) in the stored scenario's units."""
-    from orbitsim.scenario import ScenarioError
-    from orbitsim.scenario.quantities import scenario_time
+    from orbitsim.scenario import ScenarioError  # noqa: PLC0415 -- lazy: loads yaml
+    from orbitsim.scenario.quantities import scenario_time  # noqa: PLC0415 -- lazy: loads yaml
 
     integrator, dt, backward = change
     converted = []
@@ -359,7 +350,7 @@ def _option_times(stored: Scenario, t_end: float | str | None,
 
 def _plan_extension(src: Path, dst: Path, steps: int | None, t_end: float | str | None, change: tuple[Any, ...],
                     scenario: Scenario | None, force: bool) -> Continuation:
-    from orbitsim.checkpoint.switch import plan_switch, resolve_request
+    from orbitsim.checkpoint.switch import plan_switch, resolve_request  # noqa: PLC0415 -- lazy: off `orbitsim run`
 
     trace = read_trace_state(src)
     status = trace.attrs.get("status")

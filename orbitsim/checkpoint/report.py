@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any
@@ -59,8 +60,6 @@ def checkpoint_file_lines(path: str | os.PathLike) -> list[str]:
 
 def history_lines(history: Any) -> list[str]:
     """The ``history:`` section: each scheme or dt change ``run --from`` made (orbitsim.checkpoint.switch)."""
-    import json
-
     if not isinstance(history, str) or not history:
         return []
     try:

@@ -15,10 +15,14 @@ from orbitsim.io.checkpoint import (
     as_chunk,
     checkpoint_path,
     journal_dtype,
+    journal_is_locked,
     journal_path,
     write_checkpoint,
     write_checkpoint_group,
 )
+from orbitsim.io.h5safe import in_memory
+from orbitsim.io.schema import ELEMENTS, OutputError
+from orbitsim.io.trace import TraceWriter, open_trace
 
 if TYPE_CHECKING:
     from orbitsim.events.log import RunEvents
@@ -137,8 +141,6 @@ class JournalSink:
         only rebuilds it. The final state is re-published only when it matches the journal
         (after an unsafe stop the runner passes the last published checkpoint instead).
         """
-        from orbitsim.io.trace import TraceWriter
-
         if final is not None and final.samples_written == self.journal.records and final is not self.published:
             self.checkpoint(final)
         writer = TraceWriter(self.output, overwrite=self.overwrite, **self.trace_args)
@@ -172,8 +174,6 @@ def scenario_series(scenario: Scenario) -> tuple[dict[str, tuple[int, ...]], dic
     """The per-sample series a scenario's trace holds beyond the standard ones, with their shapes,
     and the attributes of their groups: ``energy_offset`` with events, ``elements/*`` with
     ``output.elements`` (group attribute ``primary``)."""
-    from orbitsim.io.schema import ELEMENTS
-
     series: dict[str, tuple[int, ...]] = {}
     groups: dict[str, dict[str, Any]] = {}
     if scenario.events is not None:
@@ -188,8 +188,6 @@ def add_checkpoint_group(writer: TraceWriter, ckpt: Checkpoint) -> None:
     """Give the trace its ``checkpoint`` group: built in memory, copied in by the writer (see
     :mod:`orbitsim.io.h5safe`). The scenario is in the trace's root (its attributes, and a large one's
     ``scenario_bodies``), and there is no journal."""
-    from orbitsim.io.h5safe import in_memory
-
     with in_memory() as memory:
         group = memory.create_group("checkpoint")
         write_checkpoint_group(group, dataclasses.replace(ckpt, scenario="", scenario_bodies=None, journal_bytes=0,
@@ -204,9 +202,6 @@ def check_side_files(output: Path, force: bool) -> None:
     ------
     orbitsim.io.schema.OutputError
     """
-    from orbitsim.io.checkpoint import journal_is_locked
-    from orbitsim.io.schema import OutputError
-
     if journal_is_locked(journal_path(output)):
         raise OutputError(f"{output}: another orbitsim process is writing this output right now")
     if checkpoint_path(output).exists() and not force:
@@ -235,8 +230,6 @@ def open_sink(scenario: Scenario, output: Path, attrs: dict[str, Any], *, overwr
 
     Samples a resumed or extended run starts with are copied in from ``start.source_trace``.
     """
-    from orbitsim.io.trace import TraceWriter
-
     series, groups = scenario_series(scenario)
     trace_args: dict[str, Any] = {"attrs": attrs, "names": list(scenario.names), "masses": scenario.masses,
                                   "n_bodies": scenario.n_bodies, "record_positions": bool(scenario.record_positions),
@@ -261,8 +254,6 @@ def open_sink(scenario: Scenario, output: Path, attrs: dict[str, Any], *, overwr
 
 def copy_samples(path: Path, count: int, sink: Any) -> None:
     """Append the first ``count`` samples of the trace at ``path`` to ``sink``, block by block."""
-    from orbitsim.io.trace import open_trace
-
     with open_trace(path) as f:
         try:
             have = int(f["time"].shape[0])

@@ -54,7 +54,7 @@ class Switch:
 def resolve_request(stored: Scenario, integrator: str | None, dt: float | None,
                     backward: bool) -> tuple[str, float]:
     """The integrator name and dt the continuation asks for (``backward``: dt = -|dt|)."""
-    from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name
+    from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
     try:
         name = canonical_name(integrator) if integrator is not None else stored.integrator
@@ -78,8 +78,8 @@ def plan_switch(src: Path, stored: Scenario, ckpt: Checkpoint, name: str, dt: fl
         For a change that cannot be honoured (see the module docstring) or a ``t_end`` not beyond
         the run's end in the direction of ``dt``.
     """
-    from orbitsim.scenario import ScenarioError
-    from orbitsim.scenario.timing import resolve_steps
+    from orbitsim.scenario import ScenarioError  # noqa: PLC0415 -- lazy: loads yaml
+    from orbitsim.scenario.timing import resolve_steps  # noqa: PLC0415 -- lazy: loads yaml
 
     changed = name != stored.integrator or dt != stored.dt
     if changed:
@@ -113,7 +113,7 @@ def plan_switch(src: Path, stored: Scenario, ckpt: Checkpoint, name: str, dt: fl
 
 def _check_switch(src: Path, stored: Scenario, name: str, dt: float) -> None:
     """Refuse, in one line, a change the continuation cannot honour."""
-    from orbitsim.scenario.timing import adaptive_integrator
+    from orbitsim.scenario.timing import adaptive_integrator  # noqa: PLC0415 -- lazy: loads yaml
 
     for scheme, settings in ((stored.integrator, stored.integrator_settings), (name, {})):
         if adaptive_integrator(scheme, settings):

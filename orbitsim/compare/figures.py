@@ -12,7 +12,13 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.compare.metrics import TESTABLE_LIMIT, pair_steps, position_error, relative_position_difference
+from orbitsim.compare.metrics import (
+    NOT_COMPARABLE,
+    TESTABLE_LIMIT,
+    pair_steps,
+    position_error,
+    relative_position_difference,
+)
 from orbitsim.plots.style import (
     REFERENCE_COLOR,
     Palette,
@@ -122,8 +128,6 @@ def position_error_figure(result: Any, path: Path) -> Path:
 def pair_figure(result: Any, path: Path) -> Path | None:
     """Each matched pair's relative position difference over time, with its tolerance (pairs that
     are not comparable have no difference to draw)."""
-    from orbitsim.compare.metrics import NOT_COMPARABLE
-
     verdicts = [v for v in result.verdicts if v.verdict != NOT_COMPARABLE]
     if not verdicts:
         return None

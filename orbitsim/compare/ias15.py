@@ -25,13 +25,16 @@ Output times:
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
 
 from orbitsim.compare.metrics import relative_position_difference
 from orbitsim.record import RunRecord, record_from_result
-from orbitsim.reference.adaptive import IAS15_DEFAULTS
+from orbitsim.reference.adaptive import IAS15_DEFAULTS, run_rebound_ias15
+from orbitsim.reference.bridge import ReboundScheme
+from orbitsim.reference.force_pairing import orbitsim_force_lines, rebound_refusal
 
 __all__ = ["REFERENCE_CHOICES", "escape_summary", "fixed_step_plan", "ias15_settings", "mutual_difference",
            "output_grid", "rebound_ias15_refusal", "run_ias15_references"]
@@ -44,7 +47,7 @@ WHOLE_STEP_RTOL = 1e-9
 
 def ias15_settings(scenario: Any) -> dict[str, float]:
     """``epsilon`` and ``min_dt``: the scenario's when its integrator is ias15, else the defaults."""
-    from orbitsim.integrators.registry import canonical_name
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
     settings = dict(IAS15_DEFAULTS)
     if canonical_name(scenario.integrator) == "ias15":
@@ -100,10 +103,9 @@ def fixed_step_plan(scenario: Any, times: np.ndarray) -> np.ndarray:
 
 def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) -> RunRecord:
     """orbitsim's ias15 on the comparison's grid, timed after a warm-up that loads its kernels."""
-    from orbitsim.reference.force_pairing import orbitsim_force_lines
-    from orbitsim.results import collect_result
-    from orbitsim.scenario_simulation import scenario_forces
-    from orbitsim.simulation import Simulation
+    from orbitsim.results import collect_result  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
+    from orbitsim.simulation import Simulation  # noqa: PLC0415 -- lazy: loads numba
 
     grid_dt, t_end, points, plan, _ = output_grid(scenario)
     run_settings = {**settings, "adaptive": True, "first_dt": float(scenario.dt), "t_end": t_end}
@@ -114,7 +116,6 @@ def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) 
 
     for _ in make().chunks(np.zeros(1, dtype=np.int64)):  # compile or load the cached kernels
         pass
-    import time
 
     sim = make()
     start = time.perf_counter()
@@ -136,9 +137,7 @@ def _run_native(scenario: Any, settings: dict[str, float], threads: int | None) 
 
 def rebound_ias15_refusal(scenario: Any) -> str | None:
     """Why REBOUND's IAS15 cannot carry the scenario's forces (then it is not run), or None."""
-    from orbitsim.reference.bridge import ReboundScheme
-    from orbitsim.reference.force_pairing import rebound_refusal
-    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     return rebound_refusal(scenario_forces(scenario), ReboundScheme("ias15"))
 
@@ -146,8 +145,7 @@ def rebound_ias15_refusal(scenario: Any) -> str | None:
 def run_ias15_references(scenario: Any, threads: int | None = None) -> dict[str, RunRecord]:
     """Both IAS15s on the comparison's output times: ``{"rebound": ..., "orbitsim": ...}``, without
     ``"rebound"`` when REBOUND cannot carry the scenario's forces (:func:`rebound_ias15_refusal`)."""
-    from orbitsim.reference.adaptive import run_rebound_ias15
-    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     settings = ias15_settings(scenario)
     native = _run_native(scenario, settings, threads)
@@ -163,8 +161,7 @@ def run_ias15_references(scenario: Any, threads: int | None = None) -> dict[str,
 
 def rebound_ias15_twin(scenario: Any, perturbation: float) -> RunRecord:
     """REBOUND's IAS15 again, from positions scaled by ``1 + perturbation`` (the ias15 pair's twin)."""
-    from orbitsim.reference.adaptive import run_rebound_ias15
-    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     _, _, _, plan, times = output_grid(scenario)
     positions = np.asarray(scenario.positions, dtype=np.float64) * (1.0 + perturbation)

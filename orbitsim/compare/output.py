@@ -46,6 +46,7 @@ from orbitsim.compare.references import reference_rows, references_table
 from orbitsim.compare.run import CompareResult
 from orbitsim.compare.tracegroup import write_file_attrs, write_trace_group
 from orbitsim.io.h5safe import in_memory, new_file
+from orbitsim.plots.style import unit_labels
 from orbitsim.provenance import provenance
 from orbitsim.reference.pairs import ENCOUNTER_CHAOS, TWIN_MARGIN
 from orbitsim.report import (
@@ -57,6 +58,7 @@ from orbitsim.report import (
     json_safe,
     reproduce_section,
     scenario_table,
+    write_report,
 )
 
 SUMMARY_FORMAT = "orbitsim.compare.summary"
@@ -196,7 +198,7 @@ def build_report(result: CompareResult, figures: dict[str, Path], command: str) 
 
 def forces_table(result: CompareResult) -> Table:
     """How each run applies each of the scenario's forces: orbitsim's runs and REBOUND's side by side."""
-    from orbitsim.scenario.forces import describe_forces
+    from orbitsim.scenario.forces import describe_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     records = [*result.runs, *result.references.values()] or [*result.runs, result.reference]
     table = Table(["run", "forces and how they are applied"],
@@ -226,8 +228,6 @@ def encounter_sentences(result: CompareResult) -> list[str]:
 
 
 def _time_unit(scenario: Any) -> str:
-    from orbitsim.plots.style import unit_labels
-
     return unit_labels(getattr(scenario, "units", ""))[0]
 
 
@@ -252,7 +252,6 @@ def write_compare_outputs(result: CompareResult, outdir: Path, command: str) -> 
     paths["summary"] = summary
     figures = compare_figures(result, outdir)
     paths.update(figures)
-    from orbitsim.report import write_report
 
     paths["markdown"], paths["html"] = write_report(build_report(result, figures, command), outdir)
     return paths

@@ -26,11 +26,20 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.compare.ias15 import (
+    REFERENCE_CHOICES,
+    fixed_step_plan,
+    output_grid,
+    rebound_ias15_refusal,
+    rebound_ias15_twin,
+    run_ias15_references,
+)
 from orbitsim.compare.metrics import (
     AGREE,
     DISAGREE,
     PairVerdict,
     RunMetrics,
+    max_abs_energy_error,
     not_comparable_verdict,
     pair_verdict,
     reference_problem,
@@ -38,6 +47,7 @@ from orbitsim.compare.metrics import (
 )
 from orbitsim.record import RunRecord, record_from_result
 from orbitsim.reference.bridge import ReboundScheme, parse_rebound_scheme
+from orbitsim.reference.force_pairing import orbitsim_force_lines, orbitsim_refusal, rebound_refusal
 from orbitsim.reference.pairs import (
     IAS15_PAIR,
     TWIN_PERTURBATION,
@@ -45,6 +55,7 @@ from orbitsim.reference.pairs import (
     available_pairs,
     partner_of,
 )
+from orbitsim.reference.sampling import run_rebound
 
 #: WHFast joins the default REBOUND set when the other bodies weigh at most this fraction of
 #: body 0: its splitting error scales with that mass ratio, and below ~1e-2 it is the scheme a
@@ -65,7 +76,7 @@ def has_dominant_central_mass(masses: np.ndarray) -> bool:
 
 
 def _registered(name: str) -> bool:
-    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec
+    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec  # noqa: PLC0415 -- lazy: loads numba
 
     try:
         get_spec(name)
@@ -78,7 +89,7 @@ def default_candidates(scenario: Any) -> list[str]:
     """The scenario's integrator, :data:`DEFAULT_MATCHED`, and ``wisdom_holman`` (if registered)
     when body 0 dominates the mass; for an adaptive scenario only its own integrator (its ``dt`` is
     a first trial step, not a step a fixed-dt scheme was chosen for)."""
-    from orbitsim.integrators.registry import canonical_name
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
     if getattr(scenario, "adaptive", False):
         return [canonical_name(scenario.integrator)]
@@ -99,9 +110,8 @@ def default_integrators(scenario: Any) -> list[str]:
 def defaults_left_out(scenario: Any, names: Sequence[str]) -> list[tuple[str, str]]:
     """``(name, why)`` for each of ``names`` (other than the scenario's own integrator) that cannot
     apply the scenario's forces."""
-    from orbitsim.integrators.registry import canonical_name
-    from orbitsim.reference.force_pairing import orbitsim_refusal
-    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     forces = scenario_forces(scenario)
     own = canonical_name(scenario.integrator)
@@ -179,7 +189,7 @@ class CompareResult:
 
 def settings_for(scenario: Any, integrator: str) -> dict[str, Any]:
     """The scenario's integrator settings if ``integrator`` is its integrator, else none."""
-    from orbitsim.integrators.registry import canonical_name
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
     if canonical_name(scenario.integrator) == canonical_name(integrator):
         return dict(getattr(scenario, "integrator_settings", None) or {})
@@ -193,10 +203,9 @@ def run_orbitsim(scenario: Any, integrator: str, sample_steps: np.ndarray, *, dt
     The warm-up loads (or compiles) the integrator's kernels so that the recorded wall time is
     the run's own, comparable with REBOUND's, and not Numba's start-up.
     """
-    from orbitsim.integrators.registry import get_spec
-    from orbitsim.reference.force_pairing import orbitsim_force_lines
-    from orbitsim.scenario_simulation import scenario_forces
-    from orbitsim.simulation import simulate
+    from orbitsim.integrators.registry import get_spec  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
+    from orbitsim.simulation import simulate  # noqa: PLC0415 -- lazy: loads numba
 
     spec = get_spec(integrator)
     step_dt = float(scenario.dt if dt is None else dt)
@@ -255,17 +264,8 @@ def run_compare(scenario: Any, *, integrators: Sequence[str], rebound: Sequence[
     -------
     CompareResult
     """
-    from orbitsim.compare.ias15 import (
-        REFERENCE_CHOICES,
-        fixed_step_plan,
-        output_grid,
-        rebound_ias15_refusal,
-        rebound_ias15_twin,
-        run_ias15_references,
-    )
-    from orbitsim.integrators.registry import canonical_name
-    from orbitsim.reference.force_pairing import orbitsim_refusal, rebound_refusal
-    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     if reference not in REFERENCE_CHOICES:
         raise ValueError(f"reference must be one of {', '.join(REFERENCE_CHOICES)}, got {reference!r}")
@@ -338,8 +338,7 @@ def _run_rebound(scenario: Any, scheme: ReboundScheme, plan: np.ndarray, integra
                  *, twin: bool = False) -> RunRecord:
     """A REBOUND run (or its twin from positions scaled by 1 + TWIN_PERTURBATION), with the
     scenario's forces through REBOUNDx."""
-    from orbitsim.reference.sampling import run_rebound
-    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     positions = np.asarray(scenario.positions, dtype=np.float64)
     if twin:
@@ -354,8 +353,6 @@ def _run_rebound(scenario: Any, scheme: ReboundScheme, plan: np.ndarray, integra
 
 
 def _announce(record: RunRecord, say: Progress) -> RunRecord:
-    from orbitsim.compare.metrics import max_abs_energy_error
-
     status = "" if record.status == "complete" else f" [{record.status}: {record.message}]"
     say(f"  {record.display:<40} {record.steps_done:>9} steps  {record.wall_time_s:8.3f} s  "
         f"max |dE/E| {max_abs_energy_error(record):.2e}{status}")

@@ -24,13 +24,13 @@ import numpy as np
 from orbitsim.convergence.run import ConvergenceResult, ConvergenceSeries
 from orbitsim.plots.style import Palette, figure_style, save, ticks_at, unit_labels
 from orbitsim.provenance import provenance
-from orbitsim.report import Figure, Report, Section, Table, fmt, reproduce_section, scenario_table
+from orbitsim.reference.pairs import available_pairs
+from orbitsim.report import Figure, Report, Section, Table, fmt, reproduce_section, scenario_table, write_report
 
 
 def _family(series: ConvergenceSeries) -> str:
     if series.engine == "orbitsim":
         return series.key
-    from orbitsim.reference.pairs import available_pairs
 
     for pair in available_pairs():
         if pair.rebound.key == series.key:
@@ -147,7 +147,7 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
     steps = round(result.end_time / abs(sc.dt)) if sc.dt else 0
     sections = [Section("Fitted orders", [orders]), Section("Errors", [errors, walls])]
     if getattr(sc, "forces", ()):
-        from orbitsim.scenario.forces import describe_forces
+        from orbitsim.scenario.forces import describe_forces  # noqa: PLC0415 -- lazy: loads yaml
 
         forces = Table(["integrator", "forces and how they are applied"],
                        [[s.display, "; ".join(s.forces) or "none"] for s in result.series])
@@ -164,8 +164,6 @@ def build_report(result: ConvergenceResult, figures: dict[str, Path], command: s
 def write_convergence_outputs(result: ConvergenceResult, outdir: Path, command: str,
                               tolerance: float) -> dict[str, Path]:
     """Write summary.json, both figures and the report into ``outdir``; returns name -> path."""
-    from orbitsim.report import write_report
-
     outdir.mkdir(parents=True, exist_ok=True)
     summary = outdir / "summary.json"
     summary.write_text(json.dumps(summary_dict(result, command, tolerance), indent=2) + "\n", encoding="utf-8")

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.compare.metrics import relative_position_difference
+from orbitsim.compare.run import run_orbitsim, settings_for
 from orbitsim.convergence.fit import (
     CEILING,
     FIT_POINTS,
@@ -40,6 +41,8 @@ from orbitsim.convergence.fit import (
 )
 from orbitsim.record import RunRecord
 from orbitsim.reference.bridge import ReboundScheme
+from orbitsim.reference.force_pairing import orbitsim_refusal, rebound_refusal
+from orbitsim.reference.sampling import REFERENCE_SCHEME, run_rebound, run_reference
 
 __all__ = ["CEILING", "DEFAULT_FACTORS", "FIT_POINTS", "FLOOR_MARGIN", "MAX_EXTENSIONS", "MAX_EXTENSION_STEPS",
            "MIN_FIT_POINTS", "STAGNATION_SLOPE", "ConvergenceResult", "ConvergenceSeries", "LadderPoint",
@@ -208,9 +211,6 @@ def _timed(run: Callable[[], RunRecord]) -> tuple[RunRecord, float]:
 def _rung_runner(series: ConvergenceSeries, rung: Any, plan: np.ndarray, scheme: ReboundScheme | None,
                  forces: Any) -> Callable[[], RunRecord]:
     """A no-argument function that runs one rung of ``series`` (so it can be repeated for timing)."""
-    from orbitsim.compare.run import run_orbitsim
-    from orbitsim.reference.sampling import run_rebound
-
     if series.engine == "orbitsim":
         return lambda: run_orbitsim(rung, series.key, plan)
     return lambda: run_rebound(rung.masses, rung.positions, rung.velocities, G=rung.G, softening=rung.softening,
@@ -221,7 +221,7 @@ class _Rungs:
     """Runs rungs of one scenario to the span T, with one IAS15 reference per end time."""
 
     def __init__(self, scenario: Any, end_time: float, schemes: dict[str, ReboundScheme]) -> None:
-        from orbitsim.scenario_simulation import scenario_forces
+        from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
         self.scenario = scenario
         self.end_time = float(end_time)
@@ -231,14 +231,12 @@ class _Rungs:
 
     def steps(self, dt: float) -> int:
         """Whole steps of ``dt`` that fit in T."""
-        from orbitsim.scenario import resolve_steps
+        from orbitsim.scenario import resolve_steps  # noqa: PLC0415 -- lazy: loads yaml
 
         return int(resolve_steps(self.end_time, dt)[0])
 
     def point(self, series: ConvergenceSeries, dt: float, *, added: bool = False) -> LadderPoint:
         """Run ``series`` at ``dt`` and measure its error against the reference at ``n * dt``."""
-        from orbitsim.reference.sampling import run_reference
-
         steps = self.steps(dt)
         rung = self.scenario.with_overrides(dt=dt, steps=steps)
         plan = np.array([0, steps], dtype=np.int64)
@@ -329,11 +327,8 @@ def run_convergence(scenario: Any, *, integrators: Sequence[str], rebound: Seque
     ValueError
         When a scheme or the REBOUND IAS15 reference cannot apply the scenario's forces.
     """
-    from orbitsim.compare.run import settings_for
-    from orbitsim.integrators.registry import get_spec
-    from orbitsim.reference.force_pairing import orbitsim_refusal, rebound_refusal
-    from orbitsim.reference.sampling import REFERENCE_SCHEME
-    from orbitsim.scenario_simulation import scenario_forces
+    from orbitsim.integrators.registry import get_spec  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.scenario_simulation import scenario_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     say = progress or (lambda _msg: None)
     forces = scenario_forces(scenario)

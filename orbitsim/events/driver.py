@@ -27,15 +27,19 @@ scenario's N: a removed body's position and velocity are NaN from its removal on
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any, Protocol
 
 import numpy as np
 
 from orbitsim.events import layout as wl
 from orbitsim.events.config import EventsConfig
+from orbitsim.events.kernels import after_step
 from orbitsim.events.log import Event, RunEvents, log_arrays, log_from_arrays
+from orbitsim.events.overlap import overlapping_pairs
 from orbitsim.events.watch import build_watch, drain, open_encounters, shrink_watch, watch_arrays, watch_from_arrays
 from orbitsim.integrators.base import IntegratorSpec
+from orbitsim.integrators.trace.collide import H_DIST, H_ENERGY, H_KEEP, H_LOSE, H_REACH, H_SPEED, H_TIME
 from orbitsim.results import SampleChunk
 
 __all__ = ["WatchedRun", "Watcher"]
@@ -121,7 +125,6 @@ class Watcher:
         collisions = self.config.collisions
         if collisions is None:
             return
-        from orbitsim.events.overlap import overlapping_pairs
 
         pairs = overlapping_pairs(sim.pos.T, self.radii)
         if not pairs:
@@ -267,7 +270,6 @@ class Watcher:
         if taken is None or len(taken[0]) == 0:
             return []
         rows, radii = taken
-        from orbitsim.integrators.trace.collide import H_DIST, H_ENERGY, H_KEEP, H_LOSE, H_REACH, H_SPEED, H_TIME
 
         step = sim.steps_done
         gone = np.zeros(len(sim.m), dtype=bool)
@@ -290,8 +292,6 @@ class Watcher:
     def _check_step(self, sim: WatchedRun) -> int:
         """The end-of-step checks of the last step, on the bodies left after its merges; the
         stop code they ask for."""
-        from orbitsim.events.kernels import after_step
-
         self.watch.counts[wl.STOP] = wl.STOP_NONE
         handoff, self._handoff = self._handoff, None
         if handoff is not None:  # what the step handed to its own sub-steps, for the bodies left
@@ -383,12 +383,8 @@ def _merge_into(keep: int, lose: int, m: np.ndarray, pos: np.ndarray, vel: np.nd
 
 
 def _replace(event: Event, **changes: Any) -> Event:
-    from dataclasses import replace
-
     return replace(event, **changes)
 
 
 def _with(chunk: SampleChunk, **changes: Any) -> SampleChunk:
-    from dataclasses import replace
-
     return replace(chunk, **changes)

@@ -80,7 +80,7 @@ class StepCheck:
         if self.pairs_examined + pairs > FREE_PAIRS + stepped // PAIR_SHARE:
             return
         self.pairs_examined += pairs
-        from orbitsim.events.timescales import orbit_timescales
+        from orbitsim.events.timescales import orbit_timescales  # noqa: PLC0415 -- lazy: loads numba
 
         n = sim.n
         tau, attractor, closest = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n)

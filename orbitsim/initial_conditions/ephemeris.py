@@ -97,8 +97,8 @@ class EphemerisStates:
 @functools.lru_cache(maxsize=1)
 def _load_de421() -> Any:
     """Load the DE421 reader once per process (the coefficient files load lazily)."""
-    import de421  # deferred: keeps ``import orbitsim`` free of the ephemeris packages
-    from jplephem.ephem import Ephemeris
+    import de421  # noqa: PLC0415 -- lazy: loads de421 (keeps ``import orbitsim`` free of the ephemeris packages)
+    from jplephem.ephem import Ephemeris  # noqa: PLC0415 -- lazy: loads jplephem
 
     return Ephemeris(de421)
 

@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from orbitsim.initial_conditions.elements import _perifocal_basis
+
 __all__ = ["parabolic_to_cartesian", "parabolic_true_anomaly"]
 
 
@@ -50,8 +52,6 @@ def parabolic_to_cartesian(gm: float, q: float, inc: float, Omega: float, omega:
     ValueError
         For gm <= 0, q <= 0, both or neither anomaly, or |f| >= 180 deg (the body would be at infinity).
     """
-    from orbitsim.initial_conditions.elements import _perifocal_basis
-
     if (M is None) == (f is None):
         raise ValueError("give exactly one of M (mean anomaly) or f (true anomaly)")
     if not (gm > 0.0 and q > 0.0):

@@ -21,6 +21,7 @@ import importlib
 from typing import Any
 
 from orbitsim.integrators.base import Integrator, IntegratorSpec
+from orbitsim.integrators.rebound_names import SAME_SCHEME, closest_scheme
 
 #: Every integrator, in the order ``orbitsim list integrators`` shows them: its name and the module
 #: of ``orbitsim.integrators`` that holds its record.
@@ -89,8 +90,6 @@ def _normalise(name: str) -> str:
 def get_integrator(name: str) -> Integrator:
     """The record (``spec``, ``step``, ``run``, every hook) for an integrator name, alias or REBOUND
     name of the same scheme (``whfast``: :mod:`orbitsim.integrators.rebound_names`)."""
-    from orbitsim.integrators.rebound_names import SAME_SCHEME
-
     key = _normalise(name) if isinstance(name, str) else ""
     key = SAME_SCHEME.get(key, key)
     if key in _MODULE_OF:
@@ -103,8 +102,6 @@ def get_integrator(name: str) -> Integrator:
 
 def _unknown_message(name: Any, key: str) -> str:
     """One line for an unknown name: REBOUND's closest scheme, else the nearest valid name, then every name."""
-    from orbitsim.integrators.rebound_names import SAME_SCHEME, closest_scheme
-
     specs = [record.spec for record in _records()]
     names = ", ".join(spec.name for spec in specs)
     aliases = ", ".join(a for spec in specs for a in spec.aliases)

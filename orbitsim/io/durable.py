@@ -64,7 +64,7 @@ class PendingText:
 def pending_text(target: str | os.PathLike[str]) -> Iterator[PendingText]:
     """Write to a temporary file; rename it onto ``target`` only if :meth:`PendingText.done` was called
     and no error occurred, else remove it. Write errors become one :class:`OutputWriteError` line."""
-    from orbitsim.io.h5safe import io_failure  # loads h5py, which a plain durable rename does not need
+    from orbitsim.io.h5safe import io_failure  # noqa: PLC0415 -- lazy: loads h5py, which a plain durable rename does not need
 
     path = Path(target)
     try:

@@ -24,15 +24,19 @@ leaves nothing half-written (:func:`orbitsim.io.durable.write_atomically`).
 
 from __future__ import annotations
 
+import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from orbitsim.checkpoint.plan import read_trace_state, stored_scenario
 from orbitsim.io.durable import write_atomically
-from orbitsim.io.schema import TraceError
+from orbitsim.io.rebound_file import write_rebound_file
+from orbitsim.io.schema import TraceError, py_value
+from orbitsim.io.stored_scenario import read_scenario_bodies
 from orbitsim.io.trace_reader import open_trace
 
 __all__ = ["Departure", "ExportNotes", "SampleState", "departure_note", "export_rebound", "export_scenario",
@@ -99,8 +103,6 @@ def read_sample(path: str | os.PathLike[str], sample: int = -1) -> SampleState:
         state is NaN without having left the run (it diverged), or a sample between two removals
         whose masses a rerun of the trace's scenario does not give.
     """
-    from orbitsim.io.schema import py_value
-
     name = os.fspath(path)
     with open_trace(name) as f:
         count = int(f["time"].shape[0])
@@ -130,8 +132,6 @@ _FATES = ("removed_step", "removed_time", "merged_into", "final_masses", "final_
 
 def _survivors(name: str, state: SampleState, finite: np.ndarray, fates: dict[str, np.ndarray]) -> SampleState:
     """``state`` restricted to the bodies still in the run (``finite``), with their masses and radii then."""
-    from dataclasses import replace
-
     removed = np.asarray(fates.get("removed_step", np.full(len(finite), -1)), dtype=np.int64)
     diverged = [n for n, ok, step in zip(state.names, finite, removed, strict=True)
                 if not ok and not 0 <= step <= state.step]
@@ -159,7 +159,7 @@ def _masses_by_replay(name: str, state: SampleState, kept: np.ndarray,
     """The masses and radii of the bodies ``kept`` at a sample between two removals, by running the
     trace's scenario again to the sample's step (same input, same bits, the same merges); used only
     when that rerun lands on the sample's exact state, so the masses are the run's own."""
-    from orbitsim.scenario_simulation import scenario_simulation
+    from orbitsim.scenario_simulation import scenario_simulation  # noqa: PLC0415 -- lazy: loads yaml
 
     later = int(removed[removed > state.step].min())
     first = int(removed[(removed >= 0) & (removed <= state.step)].min())
@@ -194,9 +194,6 @@ def departure_note(state: SampleState, where: str) -> str:
 def stored_scenario_of(state: SampleState, where: str) -> Any:
     """The fully resolved scenario the trace stores (checked against its SHA-256; a large one's
     bodies are datasets beside its text, :mod:`orbitsim.io.stored_scenario`)."""
-    from orbitsim.checkpoint.plan import stored_scenario
-    from orbitsim.io.stored_scenario import read_scenario_bodies
-
     text = state.attrs.get("scenario")
     if not isinstance(text, str) or not text:
         raise TraceError(f"{where}: the trace stores no scenario")
@@ -212,8 +209,6 @@ def stored_scenario_of(state: SampleState, where: str) -> Any:
 def _refuse_before_a_switch(state: SampleState, where: str) -> None:
     """The stored scenario is the run's scheme and dt after its last ``run --from`` switch: a sample
     taken before that was made by another (``integrator_history``), which one scenario cannot hold."""
-    import json
-
     history = json.loads(state.attrs.get("integrator_history") or "[]")
     later = [record for record in history if state.step < record["step"]]
     if later:
@@ -233,8 +228,6 @@ def _sample_radii(state: SampleState, scenario: Any) -> np.ndarray | None:
 
 def export_rebound(trace: str | os.PathLike[str], output: str | os.PathLike[str], sample: int = -1) -> ExportNotes:
     """Write sample ``sample`` of ``trace`` as a REBOUND file (the bodies still in the run then)."""
-    from orbitsim.io.rebound_file import write_rebound_file
-
     where = os.fspath(trace)
     state = read_sample(where, sample)
     scenario = stored_scenario_of(state, where)
@@ -282,7 +275,7 @@ def export_scenario(trace: str | os.PathLike[str], output: str | os.PathLike[str
 def _continuation(scenario: Any, changes: dict[str, Any], state: SampleState, where: str) -> Any:
     """``scenario`` with ``changes``; after a departure a setting that names a body gone (a force's
     source, an encounter pair, the elements' primary) is refused in one line naming it."""
-    from orbitsim.scenario.errors import ScenarioError
+    from orbitsim.scenario.errors import ScenarioError  # noqa: PLC0415 -- lazy: loads yaml
 
     try:
         return scenario.with_overrides(**changes)
@@ -297,12 +290,11 @@ def _continuation(scenario: Any, changes: dict[str, Any], state: SampleState, wh
 def _with_integrator_state(scenario: Any, stored: Any, where: str, state: SampleState) -> tuple[Any, str]:
     """``scenario`` with the scheme's own coordinates at ``state``, when it keeps any: from the trace's
     checkpoint (the last sample), else by running the stored scenario again to the sample's step."""
-    from orbitsim.scenario.integrator_state import STATEFUL, state_fingerprint
-    from orbitsim.scenario_simulation import state_by_replay, state_from_checkpoint
+    from orbitsim.scenario.integrator_state import STATEFUL, state_fingerprint  # noqa: PLC0415 -- lazy: loads yaml
+    from orbitsim.scenario_simulation import state_by_replay, state_from_checkpoint  # noqa: PLC0415 -- lazy: loads yaml
 
     if scenario.integrator not in STATEFUL:
         return scenario, ""
-    from orbitsim.checkpoint.plan import read_trace_state
 
     checkpoint = read_trace_state(Path(where)).checkpoint
     kept = None if checkpoint is None else state_from_checkpoint(scenario, checkpoint, state.step, state.positions,

@@ -21,6 +21,11 @@ from orbitsim.io.durable import datasync
 from orbitsim.io.h5safe import io_failure
 from orbitsim.io.schema import CheckpointError
 
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks (each use says what happens then)
+    fcntl = None
+
 __all__ = ["Journal", "as_chunk", "check_journal", "journal_dtype", "journal_is_locked", "journal_path"]
 
 _JOURNAL_BLOCK_BYTES = 8 * 2**20  # read-back block: flat memory for any N
@@ -177,9 +182,7 @@ def as_chunk(arrays: dict[str, np.ndarray]) -> SimpleNamespace:
 
 def _lock(fh: Any, path: Path) -> None:
     """An exclusive advisory lock, dropped by the OS when the holder dies (SIGKILL included)."""
-    try:
-        import fcntl
-    except ImportError:  # Windows: no advisory locks; a concurrent resume is then the user's lookout
+    if fcntl is None:  # Windows: no advisory locks; a concurrent resume is then the user's lookout
         return
     try:
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -189,9 +192,7 @@ def _lock(fh: Any, path: Path) -> None:
 
 def journal_is_locked(path: str | os.PathLike) -> bool:
     """Whether a live process holds the journal at ``path`` (False if there is none)."""
-    try:
-        import fcntl
-    except ImportError:
+    if fcntl is None:
         return False
     try:
         fh = open(path, "rb")

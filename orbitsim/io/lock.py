@@ -43,6 +43,11 @@ from typing import Any
 
 from orbitsim.io.schema import OutputBusyError, OutputError, OutputWriteError
 
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks (each use says what happens then)
+    fcntl = None
+
 __all__ = ["OutputLock", "clear_abandoned_lock", "current_holder", "describe_holder", "hold_output", "lock_path",
            "rerun_command"]
 
@@ -147,9 +152,7 @@ def _acquire(output: Path) -> OutputLock:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as err:
             raise _cannot_write(output, err) from None
-        try:
-            import fcntl
-        except ImportError:  # Windows: no advisory locks; a second writer is then the user's lookout
+        if fcntl is None:  # Windows: no advisory locks; a second writer is then the user's lookout
             return OutputLock(output, fd, None)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -181,9 +184,7 @@ def _acquire(output: Path) -> OutputLock:
 def current_holder(output: str | os.PathLike) -> dict[str, Any] | None:
     """The record of the live process writing ``output`` now, or None when none is (read-only:
     the lock is only tested, never taken)."""
-    try:
-        import fcntl
-    except ImportError:
+    if fcntl is None:
         return None
     try:
         fd = os.open(lock_path(output), os.O_RDONLY)

@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.io import durable
+
 __all__ = ["REBOUND_MAGIC", "ReboundFileError", "ReboundSnapshot", "is_rebound_file", "orbitsim_integrator",
            "read_rebound_file", "rebound_scheme_for", "write_rebound_file"]
 
@@ -93,7 +95,7 @@ def read_rebound_file(path: str | os.PathLike[str], snapshot: int = -1) -> Rebou
         Naming the file: missing, not a REBOUND file, a snapshot index out of range, or test
         particles with mass that orbitsim cannot represent.
     """
-    import rebound
+    import rebound  # noqa: PLC0415 -- lazy: loads rebound
 
     name = os.fspath(path)
     if not os.path.isfile(name):
@@ -254,11 +256,10 @@ def write_rebound_file(path: str | os.PathLike[str], masses: np.ndarray, positio
     OutputWriteError
         When the file cannot be written; nothing is left at ``path`` but what was there before.
     """
-    import rebound
+    import rebound  # noqa: PLC0415 -- lazy: loads rebound
 
-    from orbitsim.io.durable import replace_durably
-    from orbitsim.io.h5safe import io_failure
-    from orbitsim.reference.bridge import configure_scheme, parse_rebound_scheme
+    from orbitsim.io.h5safe import io_failure  # noqa: PLC0415 -- lazy: loads h5py
+    from orbitsim.reference.bridge import configure_scheme, parse_rebound_scheme  # noqa: PLC0415 -- lazy: off `orbitsim run`
 
     sim = rebound.Simulation()
     sim.G, sim.t, sim.softening = float(G), float(t), float(softening)
@@ -277,7 +278,7 @@ def write_rebound_file(path: str | os.PathLike[str], masses: np.ndarray, positio
     try:
         tmp.unlink(missing_ok=True)  # save_to_file appends to an existing file
         sim.save_to_file(os.fspath(tmp))
-        replace_durably(tmp, target)
+        durable.replace_durably(tmp, target)  # looked up at the call: a test swaps it for a full disk
     except (OSError, RuntimeError) as err:
         tmp.unlink(missing_ok=True)
         raise io_failure(err, f"{target}: {{reason}} (nothing was written)", target) from None

@@ -41,6 +41,7 @@ from orbitsim.io.schema import (
     VECTORS,
     energy_scale,
 )
+from orbitsim.io.stored_scenario import SCENARIO_BODIES, write_scenario_bodies
 from orbitsim.provenance import provenance
 
 __all__ = ["TraceWriter"]
@@ -164,7 +165,6 @@ class TraceWriter:
             bodies.create_dataset("masses", data=masses)
             f.copy(bodies, "bodies")
             if scenario_bodies is not None:  # a large scenario's rows (orbitsim.io.stored_scenario)
-                from orbitsim.io.stored_scenario import SCENARIO_BODIES, write_scenario_bodies
 
                 write_scenario_bodies(memory, scenario_bodies)
                 f.copy(memory[SCENARIO_BODIES], SCENARIO_BODIES)

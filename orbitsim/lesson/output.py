@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.lesson.page import page_runs, write_lesson_page
 from orbitsim.lesson.run import COLORS, DT_FACTORS, LESSON, LessonResult, lesson_metrics
 from orbitsim.plots.style import REFERENCE_COLOR, figure_style, save, ticks_at, unit_labels
 from orbitsim.provenance import provenance
@@ -29,6 +30,7 @@ from orbitsim.report import (
     json_safe,
     reproduce_section,
     scenario_table,
+    write_report,
 )
 
 
@@ -174,9 +176,6 @@ def build_report(result: LessonResult, figures: dict[str, Path], command: str) -
 def write_lesson_outputs(result: LessonResult, outdir: Path, command: str) -> dict[str, Path]:
     """Write both figures, summary.json, report.md/.html and the page to play, lesson.html, into
     ``outdir`` (replacing them)."""
-    from orbitsim.lesson.page import page_runs, write_lesson_page
-    from orbitsim.report import write_report
-
     outdir.mkdir(parents=True, exist_ok=True)
     figures = {"orbits": orbits_figure(result, outdir / "lesson_orbits.png"),
                "dt": dt_figure(result, outdir / "lesson_dt.png")}

@@ -16,8 +16,10 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.compare.run import run_orbitsim
 from orbitsim.lesson.page_template import PAGE_TEMPLATE
 from orbitsim.lesson.run import COLORS, LESSON, LessonResult
+from orbitsim.plots.style import unit_labels
 
 __all__ = ["PAGE_DT_FACTORS", "PLAY_SECONDS", "page_data", "page_runs", "write_lesson_page"]
 
@@ -39,8 +41,7 @@ REFERENCE_POINTS = 400
 def page_runs(scenario: Any) -> dict[str, list[Any]]:
     """Every scheme of the lesson at every dt of the slider, to the lesson's end time, every step
     recorded: {integrator: [RunRecord per dt]}."""
-    from orbitsim.compare.run import run_orbitsim
-    from orbitsim.scenario import resolve_steps
+    from orbitsim.scenario import resolve_steps  # noqa: PLC0415 -- lazy: loads yaml
 
     end_time = scenario.steps * scenario.dt
     runs: dict[str, list[Any]] = {name: [] for name, _, _ in LESSON}
@@ -63,8 +64,6 @@ def _significant(values: np.ndarray, digits: int) -> list[float]:
 
 def page_data(result: LessonResult, runs: dict[str, list[Any]]) -> dict[str, Any]:
     """The JSON the page plays: per scheme and dt, the planet's x, y and dE/E at every step."""
-    from orbitsim.plots.style import unit_labels
-
     sc = result.scenario
     planet = int(np.argmin(sc.masses))
     ref = result.reference.positions[:, planet, :2]

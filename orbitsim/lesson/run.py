@@ -21,7 +21,9 @@ from typing import Any
 import numpy as np
 
 from orbitsim.compare.metrics import energy_drift_slope, max_abs_energy_error, position_error
+from orbitsim.compare.run import run_orbitsim
 from orbitsim.record import RunRecord
+from orbitsim.reference.sampling import run_reference
 
 #: The three schemes of the lesson, left to right, with the one-line moral of each panel.
 LESSON: tuple[tuple[str, str, str], ...] = (
@@ -81,10 +83,8 @@ def run_lesson(scenario: Any, *, progress: Any = None) -> LessonResult:
     The sweep keeps the end time: at ``dt * f`` it takes the whole steps that fit in the lesson's
     end time and is compared with IAS15 stopped at exactly that many steps' time.
     """
-    from orbitsim.compare.run import run_orbitsim
-    from orbitsim.reference.sampling import run_reference
-    from orbitsim.scenario import resolve_steps
-    from orbitsim.simulation import sample_steps_every
+    from orbitsim.scenario import resolve_steps  # noqa: PLC0415 -- lazy: loads yaml
+    from orbitsim.simulation import sample_steps_every  # noqa: PLC0415 -- lazy: loads numba
 
     say = progress or (lambda _msg: None)
     plan = scenario.sample_steps()

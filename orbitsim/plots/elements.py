@@ -20,6 +20,7 @@ import numpy as np
 
 from orbitsim.io.schema import TraceError
 from orbitsim.physics.orbital_elements import ELEMENT_NAMES  # the datasets, in panel order
+from orbitsim.plots.event_marks import mark_events
 
 __all__ = ["ELEMENTS_GROUP", "check_elements", "draw_elements", "read_elements"]
 
@@ -67,7 +68,7 @@ def read_elements(path: str, summary: dict[str, Any], max_samples: int, max_bodi
     bodies is never read whole. A body has a finite ``a`` at a sample exactly when any of its
     elements is defined there (see :func:`~orbitsim.physics.orbital_elements.osculating_elements`).
     """
-    import h5py
+    import h5py  # noqa: PLC0415 -- lazy: loads h5py
 
     rows = _rows(summary["n_samples"], max_samples)
     n_bodies = summary["n_bodies"]
@@ -114,10 +115,10 @@ def draw_elements(data: dict[str, Any], target: Path, title: str, length: str, t
     """Draw one panel per element against time into ``target`` (format from its suffix); with
     ``events`` (kind -> times, :func:`orbitsim.plots.event_marks.read_event_times`) each panel
     marks them, and the last panel's legend names the kinds."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 -- lazy: loads matplotlib
 
     matplotlib.use("Agg")  # files only: no display needed, and no GUI toolkit imported
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 -- lazy: loads matplotlib
 
     time, bodies = data["time"], data["bodies"]
     fig, axes = plt.subplots(len(ELEMENT_NAMES), 1, sharex=True, layout="constrained",
@@ -132,8 +133,6 @@ def draw_elements(data: dict[str, Any], target: Path, title: str, length: str, t
         ax.set_ylabel(LABELS[name].format(length=length))
         ax.grid(True, alpha=0.3)
         if events:
-            from orbitsim.plots.event_marks import mark_events
-
             mark_events(ax, events, legend=ax is axes[-1])
     shown = f"{len(bodies)} of {data['n_bodies']} bodies" if len(bodies) < data["n_bodies"] else "every body"
     axes[0].set_title(f"{_primary_text(data['primary'])} ({shown})", fontsize="medium")

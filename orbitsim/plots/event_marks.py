@@ -17,6 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.io.schema import TraceError
+from orbitsim.io.trace_events import event_times
+
 __all__ = ["EVENT_COLOURS", "EVENT_GID", "mark_events", "read_event_times"]
 
 #: Each kind's colour, apart from the C0-C9 cycle the bodies' lines use (so a mark is never read as
@@ -34,10 +37,7 @@ def read_event_times(path: str) -> dict[str, np.ndarray]:
     TraceError
         When the trace has no ``events`` table (a run without ``events:``), or it is damaged.
     """
-    import h5py
-
-    from orbitsim.io.schema import TraceError
-    from orbitsim.io.trace_events import event_times
+    import h5py  # noqa: PLC0415 -- lazy: loads h5py
 
     with h5py.File(path, "r") as f:
         times = event_times(f)
@@ -53,7 +53,7 @@ def mark_events(ax: Any, times: dict[str, np.ndarray], legend: bool = True) -> l
     without, the marks carry no legend label, so a figure legend made from these axes' lines (the
     bodies') does not repeat them.
     """
-    from matplotlib.collections import LineCollection
+    from matplotlib.collections import LineCollection  # noqa: PLC0415 -- lazy: loads matplotlib
 
     drawn = []
     for kind, t in times.items():

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.units import get_unit_system
+
 #: Base font size in points: legible when a PNG is shown at its natural width in a report.
 FONT_SIZE = 11
 #: Resolution of saved PNGs: sharp on high-density screens, a few hundred KiB per figure.
@@ -43,10 +45,10 @@ _STYLE = {
 @contextlib.contextmanager
 def figure_style() -> Iterator[Any]:
     """Context with the Agg backend and orbitsim's rcParams; yields ``matplotlib.pyplot``."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 -- lazy: loads matplotlib
 
     matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 -- lazy: loads matplotlib
 
     with plt.rc_context(_STYLE):
         yield plt
@@ -54,7 +56,7 @@ def figure_style() -> Iterator[Any]:
 
 def save(fig: Any, path: Path) -> Path:
     """Save ``fig`` as PNG at :data:`DPI` and close it (figures are not kept open)."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 -- lazy: loads matplotlib
 
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
@@ -65,8 +67,6 @@ def unit_labels(units: Any) -> tuple[str, str]:
     """Short (time, length) unit labels for axes, from a unit-system name or object."""
     system = units
     if isinstance(units, str):
-        from orbitsim.units import get_unit_system
-
         try:
             system = get_unit_system(units)
         except KeyError:
@@ -92,7 +92,7 @@ class Palette:
     """Stable colours by family: a matched pair shares one colour in every figure."""
 
     def __init__(self) -> None:
-        import matplotlib
+        import matplotlib  # noqa: PLC0415 -- lazy: loads matplotlib
 
         self._cycle = [matplotlib.colors.to_hex(c) for c in matplotlib.colormaps["tab10"].colors]
         self._assigned: dict[str, str] = {}
@@ -126,7 +126,7 @@ def log_time_axis(ax: Any, time: np.ndarray) -> np.ndarray:
 def ticks_at(ax: Any, values: np.ndarray) -> None:
     """Label the x axis at ``values`` (e.g. a dt ladder) only: on a log axis spanning a decade or
     two, matplotlib's minor labels collide."""
-    from matplotlib.ticker import NullFormatter
+    from matplotlib.ticker import NullFormatter  # noqa: PLC0415 -- lazy: loads matplotlib
 
     ticks = np.unique(np.asarray(values, dtype=np.float64))
     ax.set_xticks(ticks)

@@ -148,7 +148,7 @@ def configure_scheme(sim: Any, scheme: ReboundScheme, settings: dict[str, Any] |
         return
     sim.integrator = scheme.name
     if scheme.name == "trace":
-        from orbitsim.integrators.trace import SETTINGS, validate_settings
+        from orbitsim.integrators.trace import SETTINGS, validate_settings  # noqa: PLC0415 -- lazy: loads numba
 
         # The orbitsim partner's settings; REBOUND's defaults for what they do not give.
         config = validate_settings({k: v for k, v in (settings or {}).items() if k in SETTINGS})
@@ -184,7 +184,7 @@ def rebound_simulation(masses: np.ndarray, positions: np.ndarray, velocities: np
     rebound.Simulation
         Ready to step; ``sim.t == 0``.
     """
-    import rebound
+    import rebound  # noqa: PLC0415 -- lazy: loads rebound
 
     if isinstance(scheme, str):
         scheme = parse_rebound_scheme(scheme)

@@ -117,7 +117,7 @@ IAS15_PAIR = MatchedPair("ias15", ReboundScheme("ias15"),
 
 def _registered(name: str) -> str | None:
     """Canonical orbitsim name, or None when the integrator is not registered."""
-    from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name
+    from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
     try:
         return canonical_name(name)
@@ -151,7 +151,7 @@ def parse_pair(text: str) -> MatchedPair:
     left, sep, right = text.partition("=")
     if not sep or not left.strip() or not right.strip():
         raise ValueError(f"--pair expects ORBITSIM=REBOUND[:OPTION], e.g. verlet=leapfrog:4; got {text!r}")
-    from orbitsim.integrators.registry import canonical_name
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
     scheme = parse_rebound_scheme(right)
     if not scheme.fixed_step:

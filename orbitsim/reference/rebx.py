@@ -124,7 +124,7 @@ def attach_forces(sim: Any, forces: ForceSet, *, split: bool = False, coordinate
     -------
     AttachedForces
     """
-    import reboundx
+    import reboundx  # noqa: PLC0415 -- lazy: loads reboundx
 
     rebx = reboundx.Extras(sim)
     attached = AttachedForces(rebx, [], [])
@@ -151,7 +151,7 @@ def attach_forces(sim: Any, forces: ForceSet, *, split: bool = False, coordinate
 
 def _load(rebx: Any, attached: AttachedForces, fid: int, split: bool) -> Any:
     """Load one REBOUNDx effect; add it as a force, or wrap it in two half-step operators."""
-    import reboundx
+    import reboundx  # noqa: PLC0415 -- lazy: loads reboundx
 
     force = rebx.load_force(REBX_NAMES[fid])
     attached.forces.append((fid, force))

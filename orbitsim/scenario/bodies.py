@@ -14,12 +14,15 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.initial_conditions.ephemeris import EPHEMERIS_BODIES, de421_states, epoch_to_jd
+from orbitsim.initial_conditions.generators import disc, plummer, sphere_radii
 from orbitsim.scenario.body_set import BodySet
 from orbitsim.scenario.element_input import ELEMENT_ONLY_KEYS, elements_state
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import Fields, describe, join_path
 from orbitsim.scenario.frames import AXES, rotate
 from orbitsim.scenario.quantities import ANGLE_UNITS, QuantityReader
+from orbitsim.units import AU_M, DAY_S, GAUSSIAN_YEAR_DAYS, UNIT_SYSTEMS
 
 __all__ = ["BodySet", "available_memory", "check_coincident", "read_bodies", "shift_to_barycentre"]
 
@@ -47,8 +50,6 @@ _EPHEMERIS_SCALE = {"au-day-msun": ("au", "day"), "au-yr-msun": ("au", "gyr"), "
 
 def read_bodies(doc: Fields, G: float, units: str) -> BodySet:
     """All bodies of a document, in source order ``ephemeris``, ``generator``, ``bodies``."""
-    from orbitsim.units import UNIT_SYSTEMS
-
     angles = doc.string("angles", "deg", choices=ANGLE_UNITS, fold_case=True)
     bodies = BodySet(reader=QuantityReader(units, angles, own_G=G != UNIT_SYSTEMS[units].G))
     if doc.has("ephemeris"):
@@ -118,8 +119,6 @@ def _vector(body: Fields, name: str, kind: str, reader: QuantityReader) -> list[
 
 def _ephemeris_factors(units: str, key: str) -> tuple[float, float]:
     """Length and time factors from (au, day) to the scenario's unit system."""
-    from orbitsim.units import AU_M, DAY_S, GAUSSIAN_YEAR_DAYS
-
     if units not in _EPHEMERIS_SCALE:
         raise ScenarioError(f"ephemeris states are in au and days: set units to one of "
                             f"{', '.join(_EPHEMERIS_SCALE)} (got {units!r})", key=key)
@@ -129,8 +128,6 @@ def _ephemeris_factors(units: str, key: str) -> tuple[float, float]:
 
 def _read_ephemeris(eph: Fields, G: float, units: str, bodies: BodySet) -> None:
     """DE421 states and GM values, converted to the scenario's units (masses are GM / G)."""
-    from orbitsim.initial_conditions.ephemeris import EPHEMERIS_BODIES, de421_states, epoch_to_jd
-
     eph.string("source", "de421", choices=["de421"])
     # DE421 is equatorial (ICRF); frame: ecliptic turns it, and so the whole scenario, to the J2000 ecliptic.
     frame = eph.string("frame", "equatorial", choices=AXES, fold_case=True)
@@ -196,8 +193,6 @@ def _gib(nbytes: float) -> str:
 @np.errstate(all="ignore")  # an overflow is reported as an error naming the key, not as a RuntimeWarning
 def _read_generator(spec: Any, path: str, G: float, bodies: BodySet) -> None:
     """A Plummer sphere or a disc of test bodies, reproducible from its seed."""
-    from orbitsim.initial_conditions.generators import disc, plummer
-
     kind = spec.get("kind") if isinstance(spec, dict) else None
     if kind not in GENERATOR_KINDS:  # a known kind's own keys make the better "unknown key" message
         every_key = dict.fromkeys(k for keys in GENERATOR_KINDS.values() for k in keys)  # each once
@@ -262,8 +257,6 @@ def _disc_masses(gen: Fields, reader: QuantityReader) -> dict[str, float | None]
 
 def _disc_radii(gen: Fields, reader: QuantityReader, m: np.ndarray) -> np.ndarray | None:
     """Radii of a disc's star (``star_r``) and bodies (spheres of bulk ``density``); None when neither is given."""
-    from orbitsim.initial_conditions.generators import sphere_radii
-
     if not (gen.has("density") or gen.has("star_r")):
         return None
     r = np.zeros(m.shape[0])

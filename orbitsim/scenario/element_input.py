@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from orbitsim.initial_conditions.elements import elements_to_cartesian
 from orbitsim.scenario.body_set import BodySet
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.frames import AXES, rotate
@@ -53,8 +54,6 @@ def elements_state(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[n
 
 @np.errstate(all="ignore")  # an overflow is reported as an error naming the key, not as a RuntimeWarning
 def _elements_state(body: Fields, m: float, G: float, bodies: BodySet) -> tuple[np.ndarray, np.ndarray]:
-    from orbitsim.initial_conditions.elements import elements_to_cartesian
-
     primary_name = body.string("primary")
     primary = bodies.find(primary_name)
     if primary is None:
@@ -135,7 +134,7 @@ def _semi_major_axis(body: Fields, reader: QuantityReader, size: str, gm: float,
 def _parabola(body: Fields, reader: QuantityReader, size: str, gm: float, angles: dict[str, float],
               kinds: tuple[str, str], anomaly: float) -> tuple[np.ndarray, np.ndarray]:
     """A parabola (e = 1) from q; ``kinds`` is (M or f, the key the anomaly came from)."""
-    from orbitsim.initial_conditions.parabolic import parabolic_to_cartesian
+    from orbitsim.initial_conditions.parabolic import parabolic_to_cartesian  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     if size != "q":
         raise body.error(size, "a parabolic orbit (e = 1) has no finite a or period: give q (the pericentre "

@@ -9,6 +9,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from orbitsim.data import SCENARIOS, bundled_dir, bundled_files
 from orbitsim.integrators.rebound_names import rebound_note
 from orbitsim.scenario.bodies import BodySet, check_coincident, read_bodies, shift_to_barycentre
@@ -21,6 +23,7 @@ from orbitsim.scenario.quantities import scenario_time, wall_seconds
 from orbitsim.scenario.rebound_bodies import expand_rebound_bodies, uses_rebound_file
 from orbitsim.scenario.timing import adaptive_integrator, check_t_start, resolve_grid, run_span, whole_count
 from orbitsim.scenario.yamlio import parse_yaml
+from orbitsim.units import UNIT_SYSTEMS
 
 __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "rebound_scenario", "scenario_from_dict",
            "scenario_from_stored"]
@@ -178,8 +181,6 @@ def rebound_scenario(path: str | os.PathLike[str], *, steps: int | None = None, 
 
 def _stored_bodies(arrays: Mapping[str, Any]) -> BodySet:
     """The bodies of a stored scenario's arrays (names, m, x, v and maybe r), as the reader makes them."""
-    import numpy as np
-
     names = [n.decode() if isinstance(n, bytes) else str(n) for n in np.asarray(arrays["names"]).tolist()]
     n = len(names)
     m, x, v = (np.asarray(arrays[k], dtype=np.float64) for k in ("m", "x", "v"))
@@ -211,8 +212,6 @@ def _read_integrator(top: Fields) -> tuple[str, dict[str, Any]]:
 
 
 def _build(doc: Any, source: str, default_name: str, given: BodySet | None = None) -> Scenario:
-    from orbitsim.units import UNIT_SYSTEMS
-
     if doc is None:
         raise ScenarioError("the scenario is empty: it needs at least integrator, dt, steps or t_end, and bodies")
     if uses_rebound_file(doc):  # bodies: {rebound: FILE}: explicit bodies, and G, dt, integrator from the file

@@ -16,14 +16,19 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from orbitsim.integrators.rebound_names import leapfrog_order
+from orbitsim.sampling import EveryPlan, IntervalPlan
 from orbitsim.scenario.bodies import check_body_arrays, check_coincident
 from orbitsim.scenario.data import DEFAULT_SAMPLES, ScenarioData
 from orbitsim.scenario.direction import check_direction
 from orbitsim.scenario.errors import ScenarioError
+from orbitsim.scenario.events import check_elements_output, check_events, check_radii
 from orbitsim.scenario.fields import check_number, describe
 from orbitsim.scenario.overrides import resolve_overrides
 from orbitsim.scenario.settings import check_settings
+from orbitsim.scenario.time_checks import check_time
 from orbitsim.scenario.timing import resolve_steps
+from orbitsim.units import UNIT_SYSTEMS
 
 if TYPE_CHECKING:
     from orbitsim.sampling import SamplePlan
@@ -63,7 +68,6 @@ class Scenario(ScenarioData):
                                 f"{describe(self.name)}", key="name")
         if not isinstance(self.description, str):
             raise ScenarioError(f"expected text, got {describe(self.description)}", key="description")
-        from orbitsim.units import UNIT_SYSTEMS
 
         if isinstance(self.units, str):  # unit-system names are case-insensitive, stored lower case
             self._set("units", self.units.strip().lower())
@@ -86,7 +90,7 @@ class Scenario(ScenarioData):
         self._validate_forces()
         check_direction(self.integrator, self.dt, self.events, self.forces)  # dt < 0: backwards, where possible
         if self.integrator_state is not None:
-            from orbitsim.scenario.integrator_state import check_integrator_state
+            from orbitsim.scenario.integrator_state import check_integrator_state  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
             self._set("integrator_state", check_integrator_state(self.integrator_state, self.n_bodies))
 
@@ -96,8 +100,8 @@ class Scenario(ScenarioData):
         if not self.forces:
             self._set("forces", ())
             return
-        from orbitsim.forces.compat import check_run
-        from orbitsim.scenario.forces import read_forces
+        from orbitsim.forces.compat import check_run  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
+        from orbitsim.scenario.forces import read_forces  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
         self._set("forces", read_forces(self.forces, self.names, self.units, masses=self.masses, G=self.G))
         for k, entry in enumerate(self.forces):
@@ -107,8 +111,6 @@ class Scenario(ScenarioData):
                 raise ScenarioError(refusal, key=f"forces[{k}]")
 
     def _validate_events(self) -> None:
-        from orbitsim.scenario.events import check_elements_output, check_events, check_radii
-
         self._set("radii", check_radii(self.radii, self.n_bodies))
         check_events(self.events, self.integrator)
         check_elements_output(self.record_elements, self.elements_primary, self.names)
@@ -119,8 +121,7 @@ class Scenario(ScenarioData):
             self._set(attr, value)
 
     def _validate_integrator(self) -> None:
-        from orbitsim.integrators.rebound_names import leapfrog_order
-        from orbitsim.integrators.registry import UnknownIntegratorError, get_integrator
+        from orbitsim.integrators.registry import UnknownIntegratorError, get_integrator  # noqa: PLC0415 -- lazy: loads numba
 
         settings = self.integrator_settings or {}
         name = self.integrator
@@ -144,15 +145,11 @@ class Scenario(ScenarioData):
             raise ScenarioError(str(err), key="bodies") from None
 
     def _validate_time(self) -> None:
-        from orbitsim.scenario.time_checks import check_time
-
         for name, value in check_time(self).items():
             self._set(name, value)
 
     def sample_plan(self) -> SamplePlan:
         """The sampling plan: step 0 first, ``steps`` last, produced block by block."""
-        from orbitsim.sampling import EveryPlan, IntervalPlan
-
         if self.adaptive:
             return EveryPlan(self.steps, 1)  # the grid is the output grid
         if self.interval is not None:
@@ -168,7 +165,7 @@ class Scenario(ScenarioData):
         """Things a user should know before running, one line each (may be empty)."""
         notes = []
         if self.integrator_state is not None:
-            from orbitsim.scenario.integrator_state import mismatch_note
+            from orbitsim.scenario.integrator_state import mismatch_note  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
             notes += [note for note in (mismatch_note(self),) if note]
         if self.dissipative:
@@ -190,7 +187,7 @@ class Scenario(ScenarioData):
     def to_dict(self) -> dict[str, Any]:
         """The fully resolved scenario as plain Python (what :meth:`to_yaml` writes; see
         :func:`orbitsim.scenario.serialize.scenario_to_dict`)."""
-        from orbitsim.scenario.serialize import scenario_to_dict
+        from orbitsim.scenario.serialize import scenario_to_dict  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
         return scenario_to_dict(self)
 
@@ -202,7 +199,7 @@ class Scenario(ScenarioData):
         """
         cached = self.__dict__.get("_yaml")
         if cached is None:
-            from orbitsim.scenario.serialize import scenario_to_yaml
+            from orbitsim.scenario.serialize import scenario_to_yaml  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
             cached = scenario_to_yaml(self)
             self._set("_yaml", cached)
@@ -219,7 +216,7 @@ class Scenario(ScenarioData):
             if "_yaml" in self.__dict__ or self.stored_form()[1] is None:  # the text is at hand, or small
                 cached = hashlib.sha256(self.to_yaml().encode("utf-8")).hexdigest()
             else:
-                from orbitsim.scenario.serialize import scenario_text_sha256
+                from orbitsim.scenario.serialize import scenario_text_sha256  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
                 cached = scenario_text_sha256(self)
             self._set("_sha256", cached)
@@ -231,7 +228,7 @@ class Scenario(ScenarioData):
         :func:`orbitsim.scenario.serialize.stored_form`). Built once and kept."""
         cached = self.__dict__.get("_stored")
         if cached is None:
-            from orbitsim.scenario.serialize import stored_form
+            from orbitsim.scenario.serialize import stored_form  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
             cached = stored_form(self, self.to_yaml)
             self._set("_stored", cached)

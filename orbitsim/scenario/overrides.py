@@ -13,7 +13,8 @@ from orbitsim.scenario.data import DEFAULT_SAMPLES, ScenarioData
 from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, unknown_key_error
-from orbitsim.scenario.timing import check_t_start, resolve_steps, run_span
+from orbitsim.scenario.quantities import scenario_time
+from orbitsim.scenario.timing import adaptive_integrator, check_t_start, resolve_grid, resolve_steps, run_span
 
 __all__ = ["OVERRIDABLE", "resolve_overrides"]
 
@@ -59,8 +60,6 @@ _TIME_FIELDS = {"dt": "dt", "t_start": "t_start", "t_end": "t_end", "interval": 
 def _convert_times(scenario: ScenarioData, changes: dict[str, Any]) -> None:
     """Times given with a unit (``dt="1 day"``, from ``run --dt "1 day"``) in the scenario's units; numbers
     are left as they are."""
-    from orbitsim.scenario.quantities import scenario_time
-
     G = changes.get("G", scenario.G)
     for name, key in _TIME_FIELDS.items():
         if isinstance(changes.get(name), str):
@@ -76,7 +75,7 @@ def _resolve_integrator_change(scenario: ScenarioData, changes: dict[str, Any]) 
         changes["integrator"] = integrator["name"]
         changes.setdefault("integrator_settings", settings)
     if "integrator" in changes and "integrator_settings" not in changes:
-        from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name
+        from orbitsim.integrators.registry import UnknownIntegratorError, canonical_name  # noqa: PLC0415 -- lazy: loads numba
 
         try:
             new = canonical_name(changes["integrator"])
@@ -110,8 +109,6 @@ def _resolve_time_change(scenario: ScenarioData, changes: dict[str, Any]) -> Non
 
 def _adaptive_after(scenario: ScenarioData, changes: dict[str, Any]) -> bool:
     """Whether the scenario's integrator after ``changes`` chooses its own steps (ias15)."""
-    from orbitsim.scenario.timing import adaptive_integrator
-
     integrator = changes.get("integrator", scenario.integrator)
     settings = changes.get("integrator_settings", scenario.integrator_settings)
     return adaptive_integrator(integrator, settings)
@@ -121,8 +118,6 @@ def _resolve_adaptive_time(scenario: ScenarioData, changes: dict[str, Any]) -> N
     """An adaptive run's grid is its output grid: ``t_end`` sets the end time exactly and
     ``steps`` becomes the number of output intervals; ``dt`` (the first trial step) changes neither.
     A ``steps`` override counts output intervals, so it needs ``output.interval``."""
-    from orbitsim.scenario.timing import resolve_grid
-
     t_start = check_t_start(changes.get("t_start", scenario.t_start))
     interval = None if "every" in changes else changes.get("interval", scenario.interval)
     if interval is not None:

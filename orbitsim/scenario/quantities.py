@@ -21,6 +21,7 @@ from typing import Any
 
 from orbitsim.scenario.errors import ScenarioError
 from orbitsim.scenario.fields import check_number, describe
+from orbitsim.units import GAUSSIAN_YEAR_DAYS, UNIT_SYSTEMS
 
 __all__ = ["ANGLE_UNITS", "UNIT_NAMES", "QuantityReader", "parse_angle", "scenario_time", "unit_factor",
            "wall_seconds"]
@@ -94,14 +95,12 @@ def unit_factor(unit: str, kind: str, units: str, key: str) -> float:
     if units not in _SYSTEM_BASES:
         raise ScenarioError(f"units: {units} has no physical scale, so {unit!r} cannot be converted: give a number "
                             "or use units au-yr-msun, au-day-msun or si", key=key)
-    import astropy.units as u  # lazily: ~1 s, paid only by scenarios that write units
+    import astropy.units as u  # noqa: PLC0415 -- lazy: loads astropy (~1 s, paid only by scenarios that write units)
 
     length, mass, time, time_scale = _SYSTEM_BASES[units]
     target = {"mass": mass, "length": length, "time": time}[kind]
     factor = float((1.0 * u.Unit(found[1])).to_value(u.Unit(target)))
     if kind == "time" and time_scale == "gaussian_year":
-        from orbitsim.units import GAUSSIAN_YEAR_DAYS
-
         factor /= GAUSSIAN_YEAR_DAYS
     return factor
 
@@ -171,8 +170,6 @@ def scenario_time(value: Any, units: str, G: float, key: str) -> float:
     ``units`` and ``G`` are the scenario's: a ``G`` other than the unit system's makes its time
     unit another one, so a time with a unit is then refused (as for :class:`QuantityReader`).
     """
-    from orbitsim.units import UNIT_SYSTEMS
-
     own_G = units in UNIT_SYSTEMS and G != UNIT_SYSTEMS[units].G
     return QuantityReader(units, own_G=own_G).number(value, key, "time")
 

@@ -42,7 +42,7 @@ def expand_rebound_bodies(doc: Mapping[str, Any], source: str) -> dict[str, Any]
         At ``bodies.rebound`` (missing file, not a REBOUND file, an integrator without an orbitsim
         counterpart and no ``integrator:``), ``bodies.snapshot`` or ``bodies.names``.
     """
-    from orbitsim.io.rebound_file import ReboundFileError, read_rebound_file
+    from orbitsim.io.rebound_file import ReboundFileError, read_rebound_file  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
     spec = doc["bodies"]
     unknown = [key for key in spec if key not in REBOUND_KEYS]

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.scenario.data import ScenarioData
+from orbitsim.scenario.integrator_state import state_to_dict
 from orbitsim.scenario.yamlio import dump_value, format_float
 
 __all__ = ["BODIES_GROUP", "BODY_ARRAYS", "STORED_TEXT_MAX", "scenario_text_sha256", "scenario_to_dict",
@@ -54,7 +55,6 @@ def scenario_to_dict(s: ScenarioData, bodies: bool = True) -> dict[str, Any]:
     if bodies:
         doc["bodies"] = _body_dicts(s)
     if s.integrator_state is not None:  # after the bodies it belongs to (orbitsim.scenario.integrator_state)
-        from orbitsim.scenario.integrator_state import state_to_dict
 
         doc["integrator_state"] = state_to_dict(s.integrator_state)
     return doc

@@ -70,7 +70,7 @@ def resolve_steps(t_end: float, dt: float, t_start: float = 0.0) -> tuple[int, b
 def adaptive_integrator(integrator: str, settings: Mapping[str, Any] | None) -> bool:
     """Whether ``integrator`` with ``settings`` chooses its own steps (False for an unknown name:
     the integrator check reports that)."""
-    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec
+    from orbitsim.integrators.registry import UnknownIntegratorError, get_spec  # noqa: PLC0415 -- lazy: loads numba
 
     try:
         spec = get_spec(integrator)
