@@ -5,12 +5,11 @@ Usage::
     git archive <commit before forces> orbitsim | tar -x -C /tmp/base
     .venv/bin/python benchmarks/forces_overhead.py --baseline /tmp/base [--rounds 3]
 
-The forces reach IAS15, Wisdom-Holman and the sample recorder through hooks that compile to
-nothing for a run without forces (:mod:`orbitsim.forces.hooks`); the fixed-step schemes have their
-own forced loops. This script checks both claims on a 5-body and a 64-body system: for every
-integrator it runs the same steps in a fresh process of each tree (round-robin, ``--rounds``
-times, on a noisy shared machine), and prints the fastest time per step of each (the least
-disturbed by other load), the ratio this/baseline,
+The forces reach every scheme's own loop, and the sample recorder, through hooks that compile to
+nothing for a run without forces (:mod:`orbitsim.forces.hooks`). This script checks that claim on
+a 5-body and a 64-body system: for every integrator it runs the same steps in a fresh process of
+each tree (round-robin, ``--rounds`` times, on a noisy shared machine), and prints the fastest time
+per step of each (the least disturbed by other load), the ratio this/baseline,
 and whether the final states are bit-identical. With ``--forced`` it also times this tree's run
 with a ``gr_potential`` force, for scale.
 """

@@ -34,6 +34,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -95,6 +96,7 @@ os.environ["NUMBA_CACHE_DIR"] = str(CACHE_DIR)
 import numba  # noqa: E402
 from llvmlite import binding as _llvm_binding  # noqa: E402
 from llvmlite import ir  # noqa: E402
+from numba.core import event  # noqa: E402
 from numba.extending import intrinsic, overload  # noqa: E402
 
 if numba.config.CACHE_DIR != os.environ["NUMBA_CACHE_DIR"]:
@@ -216,3 +218,50 @@ def _load_stop_flag(typingctx):
 @overload(stop_requested, inline="always")
 def _stop_requested_jitted():
     return lambda: _load_stop_flag()
+
+
+# -- what a run compiles -----------------------------------------------------------------------------
+
+class CompileWatch:
+    """The compilations Numba makes while it is installed (:func:`watch_compiles`).
+
+    Numba announces a ``numba:compile`` event only for a function it actually compiles, not for one
+    it loads from the on-disk cache, so a warm run sees none. :attr:`seconds` is the wall time of
+    the outermost compilations (a callee compiled inside its caller's compilation is not counted
+    twice), :attr:`count` how many functions were compiled, and ``on_first`` is called once, when
+    the first compilation starts (a cold run's "compiling kernels" line, printed before the wait).
+    """
+
+    def __init__(self, on_first: Callable[[], None] | None = None) -> None:
+        self.on_first = on_first
+        self.seconds = 0.0
+        self.count = 0
+        self._depth = 0
+        self._started = 0.0
+
+    def on_start(self, _event: Any) -> None:
+        if self.count == 0 and self.on_first is not None:
+            self.on_first()
+        self.count += 1
+        if self._depth == 0:
+            self._started = time.perf_counter()
+        self._depth += 1
+
+    def on_end(self, _event: Any) -> None:
+        self._depth -= 1
+        if self._depth == 0:
+            self.seconds += time.perf_counter() - self._started
+
+
+def watch_compiles(watch: CompileWatch) -> Any:
+    """A context manager under which ``watch`` sees every Numba compilation (Numba compiles under
+    one global lock, so the count is exact whichever thread compiles)."""
+
+    class _Listener(event.Listener):
+        def on_start(self, ev: Any) -> None:
+            watch.on_start(ev)
+
+        def on_end(self, ev: Any) -> None:
+            watch.on_end(ev)
+
+    return event.install_listener("numba:compile", _Listener())

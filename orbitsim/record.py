@@ -167,8 +167,9 @@ class StateDiagnostics:
         potential = float(potential_energy(x, self.m, self.G, self.eps2, self.rows))
         if self.forces is not None:
             from orbitsim.forces.kernels import force_energy  # noqa: PLC0415 -- lazy: loads numba
+            from orbitsim.forces.terms import terms_of  # noqa: PLC0415 -- beside the kernels it feeds
 
-            potential += float(force_energy(x, v, self.m, self.G, *self.forces.arrays))
+            potential += float(force_energy(x, v, self.m, self.G, terms_of(*self.forces.arrays)))
         return kinetic, potential, momentum, angular
 
 

@@ -92,7 +92,7 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
                  progress: Callable[[int, int], None] | None = None, threads: int | None = None,
                  on_chunk: Callable[[Simulation, SampleChunk], None] | None = None,
                  stop: Callable[[], bool] | None = None, handle_signals: bool = True,
-                 start: RunStart | None = None) -> RunSummary:
+                 start: RunStart | None = None, on_compile: Callable[[str], None] | None = None) -> RunSummary:
     """Run a scenario and stream its samples into an HDF5 trace.
 
     Parameters
@@ -119,6 +119,10 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
         Continue from a checkpoint instead of the scenario's initial state (see
         :func:`orbitsim.checkpoint.prepare_resume` and :func:`~orbitsim.checkpoint.prepare_extension`,
         which also check the output path).
+    on_compile : callable, optional
+        ``on_compile(line)``, called once, before Numba compiles the first of the run's kernels
+        that its on-disk cache does not hold (a first run): "compiling kernels for <scheme> (first
+        run only)". Compile time is left out of the run's wall time and steps/s.
 
     Returns
     -------
@@ -142,7 +146,8 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
     output = Path(output) if output is not None else default_output(scenario)
     _check_path(scenario, output)
     with hold_output(output):  # before anything at or beside the output is looked at or touched
-        return _run_locked(scenario, output, force, progress, threads, on_chunk, stop, handle_signals, start)
+        return _run_locked(scenario, output, force, progress, threads, on_chunk, stop, handle_signals, start,
+                           on_compile)
 
 
 def _check_path(scenario: Scenario, output: Path) -> None:
@@ -155,7 +160,8 @@ def _check_path(scenario: Scenario, output: Path) -> None:
 
 def _run_locked(scenario: Scenario, output: Path, force: bool, progress: Callable[[int, int], None] | None,
                 threads: int | None, on_chunk: Callable[[Simulation, SampleChunk], None] | None,
-                stop: Callable[[], bool] | None, handle_signals: bool, start: RunStart | None) -> RunSummary:
+                stop: Callable[[], bool] | None, handle_signals: bool, start: RunStart | None,
+                on_compile: Callable[[str], None] | None) -> RunSummary:
     from orbitsim.checkpoint.sinks import open_sink, remove_side_files  # noqa: PLC0415 -- lazy: loads h5py
 
     plan = scenario.sample_plan()
@@ -173,7 +179,7 @@ def _run_locked(scenario: Scenario, output: Path, force: bool, progress: Callabl
                                  overwrite=force if start is None else start.overwrite, start=start)
             except OSError as exc:
                 raise run_failure(exc, output, existed, "before the first step", None) from None
-        loop = RunLoop(sink, scenario, progress, on_chunk, start, force)
+        loop = RunLoop(sink, scenario, progress, on_chunk, start, force, on_compile)
         try:
             loop.run(plan, threads, stopper)
         except StopRequest:

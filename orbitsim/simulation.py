@@ -10,6 +10,14 @@ arithmetic: the same input gives the same bits however the run is cut.
 Public entry points: :func:`simulate` (collect everything into a :class:`SimulationResult`) and
 :class:`Simulation` (iterate over :class:`SampleChunk` objects, e.g. to append to an HDF5 trace).
 The plan helpers and result types are re-exported here, where they used to live.
+
+Why one module: :class:`Simulation` is one object, the engine of a run. Its methods share the
+state arrays, the integrator's work, the force context and the events watch it keeps, and each
+changes them together (bodies replaced after a merge, a jitted call undone on a stop, samples
+extended with elements); :func:`simulate` is its one-call front door, a few lines around
+:meth:`Simulation.chunks`. The pieces with a concept of their own already live apart: the
+sampling plans (:mod:`orbitsim.sampling`), the results (:mod:`orbitsim.results`), the stopping
+of long calls (:mod:`orbitsim.stopping`) and the events driver (:mod:`orbitsim.events.driver`).
 """
 
 from __future__ import annotations
@@ -108,9 +116,10 @@ class Simulation:
         :func:`orbitsim.physics.orbital_elements.osculating_elements`): the chunks then carry
         ``extra["elements/a"]``, ... (S, N).
     forces : ForceSet, optional
-        Forces beyond Newtonian point masses (:mod:`orbitsim.forces`); the run then uses the forced
-        loops of :mod:`orbitsim.forces.stepping`, and every energy (samples, :meth:`total_energy`)
-        includes the forces' energy. Without it nothing about forces is imported or compiled.
+        Forces beyond Newtonian point masses (:mod:`orbitsim.forces`): the scheme's own loop applies
+        them through the force hooks (:mod:`orbitsim.forces.hooks`), and every energy (samples,
+        :meth:`total_energy`) includes the forces' energy. Without it nothing about forces is
+        imported or compiled.
     """
 
     masses: Any
@@ -149,7 +158,6 @@ class Simulation:
                                                     int(np.size(self.masses)) >= PARALLEL_MIN_N)
         self.threads_used = set_num_threads(count)
         self.call_undone = False  # True once a stop undid a jitted call (_call_kernels): the state is as before it
-        self._run = self.scheme.run
         if self.forces is not None:
             self._check_forces()
         self.replace_bodies(*_as_state(self.masses, self.positions, self.velocities))
@@ -162,16 +170,14 @@ class Simulation:
             self.watcher = Watcher(self, self.events, self.radii)
 
     def _check_forces(self) -> None:
-        """Refuse, in one line, what the forced loops cannot do; else pick the forced ``run``."""
+        """Refuse, in one line, what a scheme cannot do with these forces."""
         from orbitsim.forces.compat import check_run
-        from orbitsim.forces.stepping import forced_run
 
         why = check_run(self.forces.names, self.spec.name, self.settings, self.events is not None)
         if why is None and self.forces.per_body.shape[2] != len(np.atleast_1d(self.masses)):
             why = "the forces were made for a different number of bodies"
         if why is not None:
             raise SimulationError(why)
-        self._run = forced_run(self.scheme)
 
     @property
     def halted(self) -> Any:
@@ -186,7 +192,7 @@ class Simulation:
         continues after a merge or a removal (:mod:`orbitsim.events.driver`).
         """
         from orbitsim.physics.diagnostics import potential_rows_scratch
-        from orbitsim.physics.gravity import accelerations, make_force
+        from orbitsim.physics.force_context import accelerations_at, make_force
 
         self.m, self.pos, self.vel = (np.ascontiguousarray(a, dtype=np.float64) for a in (m, pos, vel))
         self.n = int(self.m.shape[0])
@@ -197,27 +203,26 @@ class Simulation:
             self.scheme.carry_over(old_work, self.work)
         self.acc = np.zeros((3, self.n))
         self.rows = potential_rows_scratch(self.n)
-        G, eps2, slabs, bounds = self.force
-        self._call_kernels(functools.partial(accelerations, self.pos, self.m, G, eps2, self.acc, slabs, bounds),
+        self._call_kernels(functools.partial(accelerations_at, self.force, self.pos, self.m, self.acc),
                            undo=False)  # a stop here ends the run before its first step: nothing to undo
-        self.step_force = self.force  # the context the run loop gets: the forced one with forces
+        self.step_force = self.force  # the context the run loop gets: with the forces, when there are some
         if self.forces is not None:
             from orbitsim.forces.hooks import forced_context
 
-            self.step_force = forced_context(self.force, self.forces.arrays, self.n, self.forces.velocity_dependent)
+            self.step_force = forced_context(self.force, self.forces, self.n)
 
     def total_energy(self) -> float:
         """Kinetic plus potential energy of the current state, plus the forces' energy
         (:func:`orbitsim.forces.kernels.force_energy`) in a run with forces."""
-        from orbitsim.physics.diagnostics import kinetic_energy, potential_energy
+        from orbitsim.physics.diagnostics import kinetic_energy, potential_energy_at
 
-        potential = self._call_kernels(functools.partial(potential_energy, self.pos, self.m, self.force[0],
-                                                         self.force[1], self.rows), undo=False)
+        potential = self._call_kernels(functools.partial(potential_energy_at, self.force, self.pos, self.m,
+                                                         self.rows), undo=False)
         energy = float(kinetic_energy(self.vel, self.m)) + float(potential)
         if self.forces is not None:
             from orbitsim.forces.kernels import force_energy
 
-            energy += float(force_energy(self.pos, self.vel, self.m, self.G, *self.forces.arrays))
+            energy += float(force_energy(self.pos, self.vel, self.m, self.G, self.step_force.forces.terms))
         return energy
 
     @property
@@ -272,7 +277,7 @@ class Simulation:
             start = time.perf_counter()
             if watcher is None:
                 written, n_done, finite = self._call_kernels(functools.partial(
-                    self._run, state, self.step_force, self.dt, self.work, self.t0, self.steps_done, call_targets,
+                    self.scheme.run, state, self.step_force, self.dt, self.work, self.t0, self.steps_done, call_targets,
                     record, out))
             else:
                 written, n_done, finite, acted = self._call_kernels(

@@ -30,7 +30,8 @@ import orbitsim.simulation as simulation_module
 from orbitsim._jit import stop_kernels, stop_requested
 from orbitsim.initial_conditions.generators import plummer
 from orbitsim.physics.diagnostics import potential_energy, potential_rows_scratch
-from orbitsim.physics.gravity import PARALLEL_MIN_N, accelerations, make_force
+from orbitsim.physics.force_context import make_force
+from orbitsim.physics.gravity import PARALLEL_MIN_N, accelerations
 from orbitsim.sampling import ExplicitPlan
 from orbitsim.simulation import INTERRUPTIBLE_MIN_N, Simulation
 
@@ -52,7 +53,7 @@ def _system(n: int, seed: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @pytest.mark.parametrize("n", [200, 1000])  # one block of rows (serial), and 16 blocks on the threads
 def test_force_kernel_stops_when_asked_and_keeps_its_bits_otherwise(stop_flag, n: int) -> None:
     m, pos, _ = _system(n)
-    G, eps2, slabs, bounds = make_force(1.0, 0.01, n)
+    G, eps2, slabs, bounds, _ = make_force(1.0, 0.01, n)
     assert (bounds.shape[0] > 2) == (n >= PARALLEL_MIN_N)
     reference = np.zeros((3, n))
     accelerations(pos, m, G, eps2, reference, slabs, bounds)
@@ -90,11 +91,12 @@ def test_kernels_loaded_from_the_cache_see_the_flag(tmp_path) -> None:
     script = (
         "import numpy as np\n"
         "from orbitsim._jit import stop_kernels\n"
-        "from orbitsim.physics.gravity import accelerations, accelerations_parallel, make_force\n"
+        "from orbitsim.physics.force_context import make_force\n"
+        "from orbitsim.physics.gravity import accelerations, accelerations_parallel\n"
         "n = 1000\n"
         "rng = np.random.default_rng(1)\n"
         "m, pos = rng.random(n), rng.standard_normal((3, n))\n"
-        "G, eps2, slabs, bounds = make_force(1.0, 0.01, n)\n"
+        "G, eps2, slabs, bounds, _ = make_force(1.0, 0.01, n)\n"
         "acc = np.zeros((3, n))\n"
         "accelerations_parallel(pos, m, G, eps2, acc, slabs, bounds)\n"
         "moved = bool(acc.any())\n"
@@ -223,7 +225,7 @@ def test_a_call_in_another_thread_is_redone_when_a_stop_cut_it(stop_flag) -> Non
 
     n = 1000
     m, pos, _ = _system(n)
-    G, eps2, slabs, bounds = make_force(1.0, 0.01, n)
+    G, eps2, slabs, bounds, _ = make_force(1.0, 0.01, n)
     reference = np.zeros((3, n))
     accelerations(pos, m, G, eps2, reference, slabs, bounds)
     calls = {"made": 0, "restored": 0}

@@ -156,7 +156,8 @@ def execute(scenario: Any, output: Any, *, force: bool, threads: int | None, qui
     bar = _ProgressBar(scenario.name) if not quiet and _stderr_is_terminal() else None
     progress = None if quiet else _LongRunNote(scenario, threads, bar)
     try:
-        summary = run_scenario(scenario, output, force=force, progress=progress, threads=threads, start=start)
+        summary = run_scenario(scenario, output, force=force, progress=progress, threads=threads, start=start,
+                               on_compile=None if quiet else _CompileNote(bar))
     finally:
         if bar is not None:
             bar.close()
@@ -308,6 +309,18 @@ def _stderr_is_terminal() -> bool:
         return sys.stderr.isatty()
     except (AttributeError, ValueError):  # replaced or closed stream
         return False
+
+
+class _CompileNote:
+    """Print the line a first run (an empty Numba cache) shows before it compiles its kernels."""
+
+    def __init__(self, bar: _ProgressBar | None) -> None:
+        self.bar = bar
+
+    def __call__(self, line: str) -> None:
+        if self.bar is not None and self.bar.shown:  # on a line of its own, not over the bar
+            click.echo("", err=True)
+        click.echo(f"orbitsim: {line}", err=True)
 
 
 class _LongRunNote:

@@ -109,7 +109,7 @@ def check_unresolved(watch, pos, vel, m, n_done, t0, dt, handoff):
     stepped with the fixed dt is judged, so the encounters it hands to Bulirsch-Stoer are not
     reported as steps too long for them.
     """
-    fconf, prev, body, attractor = watch[1], watch[3], watch[4], watch[11]
+    fconf, prev, body, attractor = watch.fconf, watch.prev, watch.body, watch.attractor
     G, eta = fconf[F_G], fconf[F_ETA]
     n = pos.shape[1]
     for i in range(n):
@@ -176,7 +176,7 @@ def check_escapes(watch, pos, vel, m, n_done, t0, dt):
     centre of mass against the rest. Judged alone, its orbital speed in the pair would swing its
     energy above and below zero once an orbit, and a departing binary logged an escape per orbit.
     Once escaped, a body is escaped until it is bound again (not when it is back within R)."""
-    iconf, fconf, body = watch[0], watch[1], watch[4]
+    iconf, fconf, body = watch.iconf, watch.fconf, watch.body
     G, limit = fconf[F_G], fconf[F_ESC_R]
     n = pos.shape[1]
     total = cx = cy = cz = ux0 = uy0 = uz0 = 0.0

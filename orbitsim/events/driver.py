@@ -64,7 +64,7 @@ class WatchedRun(Protocol):
     steps_done: int
     spec: IntegratorSpec
     settings: dict[str, Any]
-    force: Any  # the context the scheme's run_watched takes (orbitsim.physics.gravity.make_force)
+    force: Any  # the context the scheme's run_watched takes (orbitsim.physics.force_context.make_force)
     work: Any  # the scheme's work arrays
 
     @property
@@ -149,7 +149,7 @@ class Watcher:
 
     def _open_contacts(self, pairs: list[tuple[int, int, float, float]], step: int) -> None:
         """Open a contact episode for each pair, as the jitted ``_contact`` does for a logged one."""
-        pair_i, pair_f, counts = self.watch[5], self.watch[6], self.watch[9]
+        pair_i, pair_f, counts = self.watch.pair_i, self.watch.pair_f, self.watch.counts
         for i, j, _, _ in pairs:
             p = int(counts[wl.N_PAIRS])
             if p >= pair_i.shape[0]:  # the table is sized for 4 episodes a body: only then
@@ -198,8 +198,8 @@ class Watcher:
     def after_call(self, sim: WatchedRun, acted: bool) -> None:
         """Drain the call's events and, when it stopped for them, resolve them."""
         events, self.watch = drain(self.watch, self.alive)
-        stop = int(self.watch[9][wl.STOP]) if acted else wl.STOP_NONE
-        self.watch[9][wl.STOP] = wl.STOP_NONE
+        stop = int(self.watch.counts[wl.STOP]) if acted else wl.STOP_NONE
+        self.watch.counts[wl.STOP] = wl.STOP_NONE
         if stop == wl.STOP_RESOLVE:
             merged = self._take_in_step_merges(sim)
             if merged:
@@ -292,15 +292,15 @@ class Watcher:
     def _check_step(self, sim: WatchedRun) -> int:
         """The end-of-step checks of the last step, on the bodies left after its merges; the
         stop code they ask for."""
-        self.watch[9][wl.STOP] = wl.STOP_NONE
+        self.watch.counts[wl.STOP] = wl.STOP_NONE
         handoff, self._handoff = self._handoff, None
         if handoff is not None:  # what the step handed to its own sub-steps, for the bodies left
             keep = self._kept
             pairs, bodies, flags = handoff
             handoff = (np.ascontiguousarray(pairs[np.ix_(keep, keep)]), bodies[keep].copy(), flags)
         after_step(self.watch, sim.pos, sim.vel, sim.m, sim.steps_done, sim.t0, sim.dt, handoff)
-        stop = int(self.watch[9][wl.STOP])
-        self.watch[9][wl.STOP] = wl.STOP_NONE
+        stop = int(self.watch.counts[wl.STOP])
+        self.watch.counts[wl.STOP] = wl.STOP_NONE
         return stop
 
     def _take_out(self, sim: WatchedRun, gone: np.ndarray, into: np.ndarray, m: np.ndarray, pos: np.ndarray,

@@ -35,6 +35,8 @@ buffer three-quarters full. The layout of the ``watch`` tuple is :data:`WATCH_LA
 
 from __future__ import annotations
 
+import numpy as np
+
 from orbitsim._jit import jit_inline
 from orbitsim.events.bodies import check_escapes, check_unresolved
 from orbitsim.events.layout import (
@@ -52,7 +54,7 @@ from orbitsim.events.layout import (
     STOP_NONE,
 )
 from orbitsim.events.pairs import close_episodes, scan_pairs
-from orbitsim.integrators.base import record_sample
+from orbitsim.integrators.base import grid_time, record_sample
 
 __all__ = ["after_step", "watched_run"]
 
@@ -60,7 +62,7 @@ __all__ = ["after_step", "watched_run"]
 @jit_inline
 def remember_start(watch, pos, vel):
     """Copy the start-of-step state into ``prev`` (the segment and Hermite fits need both ends)."""
-    prev = watch[3]
+    prev = watch.prev
     for c in range(3):
         for i in range(pos.shape[1]):
             prev[0, c, i] = pos[c, i]
@@ -68,27 +70,29 @@ def remember_start(watch, pos, vel):
 
 
 @jit_inline
-def watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """A scheme's ``run`` one step at a time, with :func:`after_step` after each.
+def watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """A scheme's ``run`` one step at a time, with :func:`after_step` after each: the one watched
+    loop, inlined into each scheme's cached ``run_watched`` with its ``advance``
+    (:mod:`orbitsim.integrators.base`).
 
-    Same contract as ``run`` (:mod:`orbitsim.integrators.base`) plus a fourth result, True when
-    the call stopped early for the Python side (``watch[9][STOP]`` says why). Taking whole steps
-    one by one gives the same bits as the scheme's own loop (each ``step`` is its ``advance`` of
-    one step, and the fused loops are bit-identical to single steps). A planned sample at the
-    step where Python must act is left to the next call, so it shows the state after the merge
-    or removal.
+    Same contract as ``run`` plus a fourth result, True when the call stopped early for the
+    Python side (``watch.counts[STOP]`` says why). Taking whole steps one by one gives the same bits
+    as the scheme's own loop (its fused loops are bit-identical to single steps). A planned sample
+    at the step where Python must act is left to the next call, so it shows the state after the
+    merge or removal.
     """
     pos, vel, acc, m = state
-    written = 0
+    written = np.int64(0)  # not the literal 0: record_sample would compile twice (for Literal[int](0) and int64)
     for k in range(targets.shape[0]):
         while n_done < targets[k]:
             remember_start(watch, pos, vel)
-            step(pos, vel, acc, m, force, dt, work)
-            n_done += 1
+            n_done, ok = advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_done + 1)
+            if not ok:
+                return written, n_done, False, False
             if after_step(watch, pos, vel, m, n_done, t0, dt, None):
                 return written, n_done, True, True
         if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+            if not record_sample(written, n_done, grid_time(work, t0, n_done, dt), pos, vel, m, force, out):
                 return written, n_done, False, False
             written += 1
     return written, n_done, True, False
@@ -101,7 +105,7 @@ def after_step(watch, pos, vel, m, n_done, t0, dt, handoff):
     ``handoff``: None, or what a hybrid scheme integrated with its own adaptive sub-steps this
     step (:func:`orbitsim.events.bodies.handed_over`), which the unresolved-step check leaves out.
     """
-    iconf, counts = watch[0], watch[9]
+    iconf, counts = watch.iconf, watch.counts
     stop = STOP_NONE
     if iconf[C_DETECT] != DETECT_NONE or iconf[C_ENC] != ENC_NONE or iconf[C_UNRES] != 0:
         stop = max(stop, scan_pairs(watch, pos, vel, m, n_done, t0, dt))
@@ -111,7 +115,7 @@ def after_step(watch, pos, vel, m, n_done, t0, dt, handoff):
         check_unresolved(watch, pos, vel, m, n_done, t0, dt, handoff)
     if iconf[C_ESCAPE] != ESC_NONE:
         stop = max(stop, check_escapes(watch, pos, vel, m, n_done, t0, dt))
-    if counts[N_EVENTS] * 4 >= watch[7].shape[0] * 3 or counts[N_LOST] > 0:
+    if counts[N_EVENTS] * 4 >= watch.ev_i.shape[0] * 3 or counts[N_LOST] > 0:
         stop = max(stop, STOP_DRAIN)
     counts[STOP] = stop
     return stop != STOP_NONE

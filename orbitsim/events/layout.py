@@ -1,4 +1,4 @@
-"""The layout of the events watch: the arrays of the ``watch`` tuple, their columns and codes.
+"""The layout of the events watch: the :class:`Watch` of arrays, their columns and codes.
 
 Shared by the jitted checks (:mod:`orbitsim.events.kernels` and the modules it calls) and by the
 Python side that builds, drains and resizes the watch (:mod:`orbitsim.events.watch`).
@@ -6,15 +6,33 @@ Python side that builds, drains and resizes the watch (:mod:`orbitsim.events.wat
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from orbitsim._jit import jit_inline
 
-#: (iconf, fconf, radii, prev, body, pair_i, pair_f, ev_i, ev_f, counts, best, attractor, hill): ``best``
-#: and ``attractor`` (N,) are each body's strongest pull and its source this step, ``hill`` (2, N)
-#: each body's distance to the heaviest body and an upper bound of its Hill factor (scratch).
-WATCH_LAYOUT = ("iconf", "fconf", "radii", "prev", "body", "pair_i", "pair_f", "ev_i", "ev_f", "counts", "best",
-                "attractor", "hill")
+
+class Watch(NamedTuple):
+    """The arrays the jitted checks read and write (:func:`orbitsim.events.watch.build_watch`)."""
+
+    iconf: np.ndarray  #: (ICONF_SIZE,) int64 configuration (C_* below)
+    fconf: np.ndarray  #: (FCONF_SIZE,) float64 configuration (F_* below)
+    radii: np.ndarray  #: (N,) collision radii
+    prev: np.ndarray  #: (2, 3, N) positions and velocities at the start of the step
+    body: np.ndarray  #: (N,) int64 body flags (B_* below)
+    pair_i: np.ndarray  #: (P, PAIR_I_COLS) int64 open episodes (an encounter, or a logged contact)
+    pair_f: np.ndarray  #: (P, PAIR_F_COLS) their closest approach so far, and the distance limit then
+    ev_i: np.ndarray  #: (E, EV_I_COLS) int64 event buffer
+    ev_f: np.ndarray  #: (E, EV_F_COLS) its float64 columns
+    counts: np.ndarray  #: (4,) int64: events, open pairs, events lost, why the call stopped (N_EVENTS ...)
+    best: np.ndarray  #: (N,) each body's strongest pull this step
+    attractor: np.ndarray  #: (N,) int64 its source
+    hill: np.ndarray  #: (2, N) each body's distance to the heaviest body and an upper bound of its Hill factor
+
+
+#: The names of the watch's arrays, in order (a checkpoint saves them by name).
+WATCH_LAYOUT = Watch._fields
 
 # iconf: int64 configuration
 C_DETECT, C_RESOLVE, C_ENC, C_ENC_HALT, C_ESCAPE, C_UNRES, C_CENTRAL = range(7)
@@ -51,7 +69,7 @@ STOP_NONE, STOP_DRAIN, STOP_RESOLVE, STOP_HALT = 0, 1, 2, 3
 @jit_inline
 def log_event(watch, kind, step, start, i, j, time, dist, speed, extra):
     """Append an event to the buffer; a full buffer counts it as lost (Python reports that loudly)."""
-    ev_i, ev_f, counts = watch[7], watch[8], watch[9]
+    ev_i, ev_f, counts = watch.ev_i, watch.ev_f, watch.counts
     k = counts[N_EVENTS]
     if k >= ev_i.shape[0]:
         counts[N_LOST] += 1
@@ -71,7 +89,7 @@ def log_event(watch, kind, step, start, i, j, time, dist, speed, extra):
 @jit_inline
 def find_pair(watch, i, j, kind):
     """Row of the open episode of ``kind`` between i and j, or -1."""
-    pair_i, counts = watch[5], watch[9]
+    pair_i, counts = watch.pair_i, watch.counts
     for p in range(counts[N_PAIRS]):
         if pair_i[p, P_I] == i and pair_i[p, P_J] == j and pair_i[p, P_KIND] == kind:
             return p
@@ -81,7 +99,7 @@ def find_pair(watch, i, j, kind):
 @jit_inline
 def open_pair(watch, i, j, kind, n_done):
     """A new open episode; -1 (and a lost event) when the table is full."""
-    pair_i, pair_f, counts = watch[5], watch[6], watch[9]
+    pair_i, pair_f, counts = watch.pair_i, watch.pair_f, watch.counts
     p = counts[N_PAIRS]
     if p >= pair_i.shape[0]:
         counts[N_LOST] += 1

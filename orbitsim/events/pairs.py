@@ -100,8 +100,8 @@ def scan_pairs(watch, pos, vel, m, n_done, t0, dt):
     inlined helper given arrays takes and drops a reference to each on every call (measured:
     ~160 ns a pair, 15x the tests themselves), so helpers are called only for a hit.
     """
-    iconf, fconf, radii, prev = watch[0], watch[1], watch[2], watch[3]
-    best, attractor, hill = watch[10], watch[11], watch[12]
+    iconf, fconf, radii, prev = watch.iconf, watch.fconf, watch.radii, watch.prev
+    best, attractor, hill = watch.best, watch.attractor, watch.hill
     n = pos.shape[1]
     detect, resolve = iconf[C_DETECT], iconf[C_RESOLVE]
     enc, unres = iconf[C_ENC], iconf[C_UNRES]
@@ -205,7 +205,7 @@ def _contact(watch, vel, i, j, n_done, t0, dt, d2, reach, resolve):
     if resolve == RESOLVE_LOG:
         p = find_pair(watch, i, j, PAIR_CONTACT)
         if p >= 0:
-            watch[5][p, P_LAST] = n_done
+            watch.pair_i[p, P_LAST] = n_done
             return STOP_NONE
         open_pair(watch, i, j, PAIR_CONTACT, n_done)
     log_event(watch, EV_COLLISION, n_done, n_done, i, j, time, math.sqrt(d2), speed, reach)
@@ -225,14 +225,14 @@ def _encounter(watch, i, j, n_done, time, d, speed, limit):
         p = open_pair(watch, i, j, PAIR_ENCOUNTER, n_done)
         if p < 0:
             return STOP_NONE
-    pair_i, pair_f = watch[5], watch[6]
+    pair_i, pair_f = watch.pair_i, watch.pair_f
     pair_i[p, P_LAST] = n_done
     if d < pair_f[p, PF_DMIN]:
         pair_f[p, PF_DMIN] = d
         pair_f[p, PF_TMIN] = time
         pair_f[p, PF_VMIN] = speed
         pair_f[p, PF_LIMIT] = limit
-    if watch[0][C_ENC_HALT] != 0 and pair_i[p, P_START] == n_done:
+    if watch.iconf[C_ENC_HALT] != 0 and pair_i[p, P_START] == n_done:
         log_event(watch, EV_ENCOUNTER, n_done, n_done, i, j, time, d, speed, limit)
         return STOP_HALT
     return STOP_NONE
@@ -251,7 +251,7 @@ def close_episodes(watch, n_done):
     """Episodes not seen this step have ended: an encounter is logged with its closest approach;
     a contact (``resolve: log``) is simply forgotten. An encounter that halted the run is not
     logged twice."""
-    iconf, pair_i, pair_f, counts = watch[0], watch[5], watch[6], watch[9]
+    iconf, pair_i, pair_f, counts = watch.iconf, watch.pair_i, watch.pair_f, watch.counts
     p = 0
     while p < counts[N_PAIRS]:
         if pair_i[p, P_LAST] >= n_done:

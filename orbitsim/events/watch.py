@@ -1,7 +1,7 @@
 """The Python side of the events watch: build its arrays, drain its events, shrink it with the system.
 
 The jitted checks (:mod:`orbitsim.events.kernels`) only read and write the arrays of the ``watch``
-tuple (:data:`orbitsim.events.layout.WATCH_LAYOUT`). This module makes them from an
+:class:`~orbitsim.events.layout.Watch`. This module makes them from an
 :class:`~orbitsim.events.config.EventsConfig`, turns the logged rows into :class:`Event` objects
 with the scenario's body indices, drops the bodies a merge or a removal took out, and exports
 every array for a checkpoint (so a resumed run continues its open encounters bit for bit).
@@ -32,8 +32,8 @@ _RESOLVE = {"log": wl.RESOLVE_LOG, "halt": wl.RESOLVE_HALT, "merge": wl.RESOLVE_
 _ESCAPE = {None: wl.ESC_NONE, "log": wl.ESC_LOG, "halt": wl.ESC_HALT, "remove": wl.ESC_REMOVE}
 
 
-def build_watch(config: EventsConfig, masses: np.ndarray, radii: np.ndarray, G: float) -> tuple[np.ndarray, ...]:
-    """The ``watch`` tuple for a system of ``len(masses)`` bodies."""
+def build_watch(config: EventsConfig, masses: np.ndarray, radii: np.ndarray, G: float) -> wl.Watch:
+    """The :class:`~orbitsim.events.layout.Watch` for a system of ``len(masses)`` bodies."""
     n = int(masses.shape[0])
     iconf = np.zeros(wl.ICONF_SIZE, dtype=np.int64)
     fconf = np.zeros(wl.FCONF_SIZE)
@@ -50,19 +50,19 @@ def build_watch(config: EventsConfig, masses: np.ndarray, radii: np.ndarray, G: 
     fconf[wl.F_ETA] = config.unresolved.eta if config.unresolved is not None else 0.0
     iconf[wl.C_CENTRAL] = int(np.argmax(masses)) if n else 0
     fconf[wl.F_G] = G
-    return (iconf, fconf, np.array(radii, dtype=np.float64), np.zeros((2, 3, n)), np.zeros(n, dtype=np.int64),
-            np.zeros((max(MIN_PAIRS, PAIRS_PER_BODY * n), wl.PAIR_I_COLS), dtype=np.int64),
-            np.zeros((max(MIN_PAIRS, PAIRS_PER_BODY * n), wl.PAIR_F_COLS)),
-            np.zeros((max(MIN_EVENTS, EVENTS_PER_BODY * n), wl.EV_I_COLS), dtype=np.int64),
-            np.zeros((max(MIN_EVENTS, EVENTS_PER_BODY * n), wl.EV_F_COLS)), np.zeros(4, dtype=np.int64),
-            np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros((2, n)))
+    pairs, events = max(MIN_PAIRS, PAIRS_PER_BODY * n), max(MIN_EVENTS, EVENTS_PER_BODY * n)
+    return wl.Watch(iconf=iconf, fconf=fconf, radii=np.array(radii, dtype=np.float64), prev=np.zeros((2, 3, n)),
+                    body=np.zeros(n, dtype=np.int64), pair_i=np.zeros((pairs, wl.PAIR_I_COLS), dtype=np.int64),
+                    pair_f=np.zeros((pairs, wl.PAIR_F_COLS)), ev_i=np.zeros((events, wl.EV_I_COLS), dtype=np.int64),
+                    ev_f=np.zeros((events, wl.EV_F_COLS)), counts=np.zeros(4, dtype=np.int64), best=np.zeros(n),
+                    attractor=np.zeros(n, dtype=np.int64), hill=np.zeros((2, n)))
 
 
-def drain(watch: tuple[np.ndarray, ...], alive: np.ndarray) -> tuple[list[Event], tuple[np.ndarray, ...]]:
+def drain(watch: wl.Watch, alive: np.ndarray) -> tuple[list[Event], wl.Watch]:
     """The events logged since the last drain (body indices mapped through ``alive`` to the
     scenario's), and the watch to go on with: the same one emptied, or, after a loss, one with
     buffers twice the size (the loss is reported as a ``lost`` event)."""
-    ev_i, ev_f, counts = watch[7], watch[8], watch[9]
+    ev_i, ev_f, counts = watch.ev_i, watch.ev_f, watch.counts
     used = int(counts[wl.N_EVENTS])
     events = [_event(ev_i[k], ev_f[k], alive) for k in range(used)]
     # Cleared, not just forgotten: a checkpoint saves the buffer, and a resumed run's must hold the
@@ -87,20 +87,20 @@ def _event(row_i: np.ndarray, row_f: np.ndarray, alive: np.ndarray) -> Event:
                  speed=float(row_f[wl.EF_SPEED]), extra=float(row_f[wl.EF_EXTRA]))
 
 
-def _grown(watch: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+def _grown(watch: wl.Watch) -> wl.Watch:
     parts = list(watch)
-    for slot in (5, 6, 7, 8):
+    for slot in (wl.WATCH_LAYOUT.index(name) for name in ("pair_i", "pair_f", "ev_i", "ev_f")):
         old = parts[slot]
         parts[slot] = np.zeros((2 * old.shape[0], old.shape[1]), dtype=old.dtype)
         parts[slot][: old.shape[0]] = old
-    return tuple(parts)
+    return wl.Watch(*parts)
 
 
-def open_encounters(watch: tuple[np.ndarray, ...], alive: np.ndarray, involving: np.ndarray | None = None,
+def open_encounters(watch: wl.Watch, alive: np.ndarray, involving: np.ndarray | None = None,
                     ) -> list[Event]:
     """The encounters still open (at the end of a run, or of a body: ``involving`` is a boolean
     mask of the current bodies whose encounters end now), as events; they are not removed."""
-    pair_i, pair_f, counts = watch[5], watch[6], watch[9]
+    pair_i, pair_f, counts = watch.pair_i, watch.pair_f, watch.counts
     events = []
     for p in range(int(counts[wl.N_PAIRS])):
         i, j = int(pair_i[p, wl.P_I]), int(pair_i[p, wl.P_J])
@@ -112,8 +112,8 @@ def open_encounters(watch: tuple[np.ndarray, ...], alive: np.ndarray, involving:
     return events
 
 
-def shrink_watch(watch: tuple[np.ndarray, ...], keep: np.ndarray, radii: np.ndarray,
-                 masses: np.ndarray) -> tuple[np.ndarray, ...]:
+def shrink_watch(watch: wl.Watch, keep: np.ndarray, radii: np.ndarray,
+                 masses: np.ndarray) -> wl.Watch:
     """The watch of the bodies ``keep`` (current indices, increasing) with their new ``radii`` and
     ``masses``: episodes of removed bodies are dropped (the caller logs them first), the others
     renumbered; the start-of-step states of the bodies kept are kept."""
@@ -134,16 +134,18 @@ def shrink_watch(watch: tuple[np.ndarray, ...], keep: np.ndarray, radii: np.ndar
     new_iconf = iconf.copy()
     new_iconf[wl.C_CENTRAL] = int(np.argmax(masses)) if n else 0
     # The start-of-step states go along: checks can then run on the step that just ended.
-    return (new_iconf, fconf.copy(), np.array(radii, dtype=np.float64), prev[:, :, keep].copy(), body[keep].copy(),
-            new_pair_i, new_pair_f, ev_i, ev_f, new_counts, np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros((2, n)))
+    return wl.Watch(iconf=new_iconf, fconf=fconf.copy(), radii=np.array(radii, dtype=np.float64),
+                    prev=prev[:, :, keep].copy(), body=body[keep].copy(), pair_i=new_pair_i, pair_f=new_pair_f,
+                    ev_i=ev_i, ev_f=ev_f, counts=new_counts, best=np.zeros(n), attractor=np.zeros(n, dtype=np.int64),
+                    hill=np.zeros((2, n)))
 
 
-def watch_arrays(watch: tuple[np.ndarray, ...]) -> dict[str, np.ndarray]:
+def watch_arrays(watch: wl.Watch) -> dict[str, np.ndarray]:
     """Copies of the watch's arrays by name (for a checkpoint; the scratch ``best``, ``attractor``
     and ``prev`` are rewritten every step, but are saved too so the layout check stays simple)."""
     return {name: np.array(arr) for name, arr in zip(wl.WATCH_LAYOUT, watch, strict=True)}
 
 
-def watch_from_arrays(arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
+def watch_from_arrays(arrays: dict[str, np.ndarray]) -> wl.Watch:
     """The inverse of :func:`watch_arrays`."""
-    return tuple(np.ascontiguousarray(arrays[name]) for name in wl.WATCH_LAYOUT)
+    return wl.Watch(*(np.ascontiguousarray(arrays[name]) for name in wl.WATCH_LAYOUT))

@@ -70,7 +70,7 @@ def check_integrator(force_names: Iterable[str], integrator: str) -> str | None:
 
 
 def check_run(force_names: Iterable[str], integrator: str, settings: dict, has_events: bool) -> str | None:
-    """:func:`check_integrator`, then what the forced loops do not combine with forces yet: events
+    """:func:`check_integrator`, then what the schemes do not combine with forces yet: events
     (collisions, encounters, escapes) and Wisdom-Holman's symplectic correctors. One line, or None.
 
     Shared by the scenario's validation (``validate`` and ``run`` refuse before anything is

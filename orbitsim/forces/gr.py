@@ -30,14 +30,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 
 #: Fixed-point iterations for v~ (REBOUNDx's default ``max_iterations``).
 MAX_ITERATIONS = 10
 _EPS = np.finfo(np.float64).eps
 
 
-@jit
+@jit_inline
 def gr_potential_accelerations(pos, m, G, src, c, acc):
     """acc (3, N) += the Nobili-Roxburgh acceleration of every body about ``src``, and its reaction."""
     C2 = c * c
@@ -78,7 +78,7 @@ def gr_potential_energy(pos, m, G, src, c):
     return H
 
 
-@jit
+@jit_inline
 def chain(k, src):
     """The body at place k of the Jacobi chain: the source first, then the others in index order."""
     if k == 0:
@@ -88,11 +88,13 @@ def chain(k, src):
     return k
 
 
-@jit
+@jit_inline
 def _newtonian_in_chain(pos, m, G, src, an):
     """an (3, N) = Newtonian accelerations, indexed by chain place, pairs summed in chain order."""
     n = pos.shape[1]
-    an[:, :] = 0.0
+    for c in range(3):  # explicit loops: a slice assignment costs more than the 9-body sum it clears for
+        for a in range(n):
+            an[c, a] = 0.0
     for a in range(n):
         i = chain(a, src)
         for b in range(a + 1, n):
@@ -111,7 +113,7 @@ def _newtonian_in_chain(pos, m, G, src, an):
             an[2, b] += prefac * m[i] * dz
 
 
-@jit
+@jit_inline
 def _to_jacobi(pos, vel, an, m, src, jac):
     """jac rows 0-8 = Jacobi x, v, a of chain places 1..N-1 (REBOUND's posvelacc transformation);
     returns the total mass. Column 0 (no Jacobi coordinate) holds the running mass-weighted sums."""
@@ -136,7 +138,7 @@ def _to_jacobi(pos, vel, an, m, src, jac):
     return eta
 
 
-@jit
+@jit_inline
 def _solve_vtilde(vx, vy, vz, ri, mu, C2):
     """v~ = v / (1 - A(v~)) by fixed-point iteration, REBOUNDx's stopping rule; returns v~, A."""
     wx, wy, wz = vx, vy, vz

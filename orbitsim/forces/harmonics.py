@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 
 
-@jit
+@jit_inline
 def spin_basis(sx, sy, sz):
     """The body frame (u, v, w) of a spin axis, as REBOUNDx's ``uvw``: w = s / |s|, u = z x w
     normalised (x when s is along z), v = w x u. Returns the nine components, u then v then w."""
@@ -51,7 +51,7 @@ def spin_basis(sx, sy, sz):
     return ux, uy, uz, vx, vy, vz, wx, wy, wz
 
 
-@jit
+@jit_inline
 def harmonics_accelerations(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, acc):
     """acc (3, N) += the J2/J4 accelerations of every body about body ``src``, and its reaction."""
     ux, uy, uz, vx, vy, vz, wx, wy, wz = spin_basis(sx, sy, sz)

@@ -1,150 +1,214 @@
-"""The few places where IAS15, Wisdom-Holman and the sample recorder meet a run's forces.
+"""Where every integrator meets a run's forces: hooks that compile to nothing without forces.
 
-A run with forces passes a *forced force context* instead of the plain one of
-:func:`orbitsim.physics.gravity.make_force`:
+A step receives the force context of :func:`orbitsim.physics.force_context.make_force`; in a run with
+forces its ``forces`` field holds a :class:`Forces` (:func:`forced_context` puts it there), and
+None otherwise. The hooks below are Numba ``overload`` s resolved when a step is typed: for a
+context whose ``forces`` is None they are empty functions, inlined at Numba's IR level and so
+removed before LLVM sees the step, which compiles to the same code as a step that never heard of
+forces (benchmarks/forces_overhead.py measures it); with forces they walk the run's force records
+(:mod:`orbitsim.forces.kernels`, imported only then), each resolved to its own kernel. That is how
+every scheme serves forced runs with its own loop and no second copy of it, and how a run without
+forces compiles, imports and pays nothing for them.
 
-    (G, eps2, slabs, bounds, (ids, source, params, per_body, scratch, v_node, velocity_in_derivative))
-
-(:func:`forced_context` builds it). The hooks below are Numba ``overload`` s resolved when a caller
-is typed: for the plain 4-tuple they are empty functions, inlined at Numba's IR level and so
-removed before LLVM sees the caller, which therefore compiles to the same code as before the
-hooks existed (benchmarks/forces_overhead.py measures it); for the forced context they call the
-force kernels of :mod:`orbitsim.forces.kernels`, which is imported only then. That is how IAS15's
-predictor-corrector and Wisdom-Holman's map serve forced runs without a second copy of either,
-and how a run without forces compiles, imports and pays nothing for forces.
-
-* :func:`add_forces`: ``acc += `` the forces at (pos, vel): position-only ones always, the
-  velocity-dependent ones too when ``velocity_in_derivative`` (IAS15; the symplectic schemes
-  apply those as an operator instead, Tamayo et al. 2020, MNRAS 491, 2885).
-* :func:`add_node_forces`: the same at an IAS15 node; when velocity-dependent forces are in the
-  derivative, the node's velocities are first predicted from the polynomial, in the operation
-  order of REBOUND's ``integrator_ias15.c`` (its ``force_is_velocity_dependent`` branch).
-* :func:`add_interaction_forces`: Wisdom-Holman's interaction kick, with the position-only forces
-  added to the inertial accelerations before their Jacobi transform, as REBOUND's WHFast does
-  with ``additional_forces``.
-* :func:`record_force_energy`: a sample's potential gets ``force_energy`` added, so every
+* :func:`add_forces`: ``acc +=`` every force at (pos, vel), for the schemes that integrate the
+  equations of motion (euler, rk4, ias15);
+* :func:`add_kick_forces`: ``acc +=`` the position-only forces (``gr_potential``, ``harmonics``):
+  they derive from a potential, so they join gravity in every kick of a symplectic scheme (in
+  Wisdom-Holman's interaction kick before the Jacobi transform, as REBOUND's WHFast adds
+  ``additional_forces``), which stays symplectic;
+* :func:`velocity_operator` and :func:`has_velocity_operator`: the velocity-dependent forces
+  (``gr``, ``migration``) as their own operator ``V(h)`` around a symplectic step,
+  ``V(dt/2) S(dt) V(dt/2)`` (REBOUNDx's ``integrate_force``, implicit midpoint): naive
+  velocity-dependent kicks give qualitatively wrong long-term answers (Tamayo, Rein, Shi &
+  Hernandez 2020, MNRAS 491, 2885);
+* :func:`add_node_forces`: :func:`add_forces` at an IAS15 node, the node's velocities predicted from
+  the polynomial first when a force needs them, in the operation order of REBOUND's
+  ``integrator_ias15.c`` (its ``force_is_velocity_dependent`` branch);
+* :func:`refresh_accelerations`: a forced run's accelerations afresh at the start of every call,
+  with the arithmetic of the end of a step, so however a run is cut into calls the bits are the
+  same (a run without forces keeps the ones its last step left);
+* :func:`record_force_energy`: a sample's potential gets the forces' energy added, so every
   energy a trace reports is the quantity the forces conserve.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import types
 from numba.extending import overload
 
-#: Length of a forced force context, and of the tuple of force arrays in its last slot.
-FORCED_LEN = 5
-EXTRA_LEN = 7
+if TYPE_CHECKING:
+    from orbitsim.forces.table import ForceSet
+    from orbitsim.physics.force_context import ForceContext
+
+__all__ = ["Forces", "add_forces", "add_kick_forces", "add_node_forces", "forced_context", "has_velocity_operator",
+           "record_force_energy", "refresh_accelerations", "velocity_operator"]
 
 
-def is_forced(force: Any) -> bool:
-    """True for the Numba type of a forced force context (see the module docstring)."""
-    return (isinstance(force, types.BaseTuple) and len(force) == FORCED_LEN
-            and isinstance(force[FORCED_LEN - 1], types.BaseTuple) and len(force[FORCED_LEN - 1]) == EXTRA_LEN)
+class Forces(NamedTuple):
+    """A run's forces as the steps read them: the force records in order
+    (:func:`orbitsim.forces.terms.terms_of`), the velocity-dependent forces' scratch
+    (:func:`orbitsim.forces.kernels.make_force_scratch`) and IAS15's node velocities (3, N)."""
+
+    terms: tuple
+    scratch: np.ndarray
+    v_node: np.ndarray
 
 
-def forced_context(force: tuple[Any, ...], arrays: tuple[np.ndarray, ...], n: int,
-                   velocity_in_derivative: bool) -> tuple[Any, ...]:
-    """The forced context for the plain ``force`` of N bodies and a ForceSet's ``arrays``."""
+def forced_context(force: ForceContext, forces: ForceSet, n: int) -> ForceContext:
+    """``force`` (a context of :func:`~orbitsim.physics.force_context.make_force` for N bodies) with the
+    ForceSet's forces in its ``forces`` field."""
     from orbitsim.forces.kernels import make_force_scratch
+    from orbitsim.forces.terms import terms_of
 
-    ids, source, params, per_body = (np.ascontiguousarray(a) for a in arrays)
-    extra = (ids, source, params, per_body, make_force_scratch(n), np.zeros((3, n)), bool(velocity_in_derivative))
-    return (*force, extra)
+    return force._replace(forces=Forces(terms_of(*forces.arrays), make_force_scratch(n), np.zeros((3, n))))
+
+
+def _terms(force: Any) -> Any:
+    """The Numba type of a force context's force records, or None for a context without forces."""
+    if not isinstance(force, types.BaseNamedTuple) or "forces" not in getattr(force, "fields", ()):
+        return None
+    forces = force.types[force.fields.index("forces")]
+    if not isinstance(forces, types.BaseNamedTuple):
+        return None
+    return forces.types[forces.fields.index("terms")]
+
+
+def _velocity_dependent(force: Any) -> bool:
+    """True when the context's type holds a velocity-dependent force (typing time)."""
+    terms = _terms(force)
+    if terms is None:
+        return False
+    from orbitsim.forces.kernels import has_velocity_terms
+
+    return has_velocity_terms(terms)
 
 
 # The Python stand-ins: never run (every caller is jitted); the overloads below give their meaning.
-def force_arrays(force):
-    """The force arrays of a forced context, None for a plain one."""
-    raise NotImplementedError
+def add_forces(force, pos, vel, m, acc):
+    """acc += every force at (pos, vel) (module docstring)."""
+    raise NotImplementedError("called from jitted code only")
 
 
-def add_forces(extra, G, pos, vel, m, acc):
-    """acc += the forces at (pos, vel) (module docstring)."""
-    raise NotImplementedError
+def add_kick_forces(force, pos, m, acc):
+    """acc += the position-only forces at pos."""
+    raise NotImplementedError("called from jitted code only")
 
 
-def add_node_forces(extra, G, pos, m, at, b, csv, v0, a0, dt, hn):
+def velocity_operator(force, pos, vel, m, h):
+    """vel advanced over h by the velocity-dependent forces, positions fixed."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def has_velocity_operator(force):
+    """True when the run has velocity-dependent forces (a constant of the context's type)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn):
     """at += the forces at IAS15's node hn."""
-    raise NotImplementedError
+    raise NotImplementedError("called from jitted code only")
 
 
-def add_interaction_forces(extra, G, ipos, m, acc):
-    """acc += the position-only forces at inertial ipos."""
-    raise NotImplementedError
+def refresh_accelerations(force, pos, vel, m, acc, derivative):
+    """A forced run's acc afresh: gravity and the position-only forces, the velocity-dependent ones
+    too when ``derivative``; nothing without forces."""
+    raise NotImplementedError("called from jitted code only")
 
 
 def record_force_energy(force, pos, vel, m, scalars, r):
-    """scalars[r, 1] += force_energy (forced runs)."""
-    raise NotImplementedError
-
-
-def _none(extra: Any) -> bool:
-    return isinstance(extra, (types.NoneType, types.Omitted))
-
-
-@overload(force_arrays, inline="always")
-def _force_arrays(force):
-    if is_forced(force):
-        return lambda force: force[4]
-    return lambda force: None
+    """scalars[r, 1] += the forces' energy (forced runs)."""
+    raise NotImplementedError("called from jitted code only")
 
 
 @overload(add_forces, inline="always")
-def _add_forces(extra, G, pos, vel, m, acc):
-    if _none(extra):
-        return lambda extra, G, pos, vel, m, acc: None
-    from orbitsim.forces.kernels import add_position_forces, add_velocity_forces
+def _add_forces(force, pos, vel, m, acc):
+    if _terms(force) is None:
+        return lambda force, pos, vel, m, acc: None
+    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of
 
-    def impl(extra, G, pos, vel, m, acc):
-        ids, source, params, per_body, scratch, _, in_derivative = extra
-        add_position_forces(pos, m, G, ids, source, params, per_body, acc)
-        if in_derivative:
-            add_velocity_forces(pos, vel, m, G, ids, source, params, per_body, acc, scratch)
+    def impl(force, pos, vel, m, acc):
+        forces = force.forces
+        add_position_forces_of(forces.terms, pos, m, force.G, acc)
+        add_velocity_forces_of(forces.terms, pos, vel, m, force.G, acc, forces.scratch)
     return impl
+
+
+@overload(add_kick_forces, inline="always")
+def _add_kick_forces(force, pos, m, acc):
+    if _terms(force) is None:
+        return lambda force, pos, m, acc: None
+    from orbitsim.forces.kernels import add_position_forces_of
+
+    return lambda force, pos, m, acc: add_position_forces_of(force.forces.terms, pos, m, force.G, acc)
+
+
+@overload(velocity_operator, inline="always")
+def _velocity_operator(force, pos, vel, m, h):
+    if not _velocity_dependent(force):
+        return lambda force, pos, vel, m, h: None
+    from orbitsim.forces.kernels import velocity_operator_of
+
+    return lambda force, pos, vel, m, h: velocity_operator_of(force.forces.terms, pos, vel, m, force.G, h,
+                                                               force.forces.scratch)
+
+
+@overload(has_velocity_operator, inline="always")
+def _has_velocity_operator(force):
+    if _velocity_dependent(force):
+        return lambda force: True
+    return lambda force: False
 
 
 @overload(add_node_forces, inline="always")
-def _add_node_forces(extra, G, pos, m, at, b, csv, v0, a0, dt, hn):
-    if _none(extra):
-        return lambda extra, G, pos, m, at, b, csv, v0, a0, dt, hn: None
-    from orbitsim.forces.kernels import add_position_forces, add_velocity_forces
+def _add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn):
+    if _terms(force) is None:
+        return lambda force, pos, m, at, b, csv, v0, a0, dt, hn: None
+    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of
 
-    def impl(extra, G, pos, m, at, b, csv, v0, a0, dt, hn):
-        ids, source, params, per_body, scratch, v_node, in_derivative = extra
-        add_position_forces(pos, m, G, ids, source, params, per_body, at)
-        if in_derivative:
-            vf = v_node.reshape(v_node.size)
-            for k in range(vf.shape[0]):
-                # REBOUND's Horner form of v(h) = v0 + h dt (a0 + h/2 (b0 + 2h/3 (b1 + ...))).
-                vk = -csv[k] + (((((((b[6, k] * 7.0 * hn / 8.0 + b[5, k]) * 6.0 * hn / 7.0 + b[4, k])
-                                    * 5.0 * hn / 6.0 + b[3, k]) * 4.0 * hn / 5.0 + b[2, k]) * 3.0 * hn / 4.0
-                                  + b[1, k]) * 2.0 * hn / 3.0 + b[0, k]) * hn / 2.0 + a0[k]) * dt * hn
-                vf[k] = vk + v0[k]
-            add_velocity_forces(pos, v_node, m, G, ids, source, params, per_body, at, scratch)
+    if not _velocity_dependent(force):
+        return lambda force, pos, m, at, b, csv, v0, a0, dt, hn: add_position_forces_of(force.forces.terms, pos, m,
+                                                                                          force.G, at)
+
+    def impl(force, pos, m, at, b, csv, v0, a0, dt, hn):
+        forces = force.forces
+        add_position_forces_of(forces.terms, pos, m, force.G, at)
+        v_node = forces.v_node
+        vf = v_node.reshape(v_node.size)
+        for k in range(vf.shape[0]):
+            # REBOUND's Horner form of v(h) = v0 + h dt (a0 + h/2 (b0 + 2h/3 (b1 + ...))).
+            vk = -csv[k] + (((((((b[6, k] * 7.0 * hn / 8.0 + b[5, k]) * 6.0 * hn / 7.0 + b[4, k])
+                                * 5.0 * hn / 6.0 + b[3, k]) * 4.0 * hn / 5.0 + b[2, k]) * 3.0 * hn / 4.0
+                              + b[1, k]) * 2.0 * hn / 3.0 + b[0, k]) * hn / 2.0 + a0[k]) * dt * hn
+            vf[k] = vk + v0[k]
+        add_velocity_forces_of(forces.terms, pos, v_node, m, force.G, at, forces.scratch)
     return impl
 
 
-@overload(add_interaction_forces, inline="always")
-def _add_interaction_forces(extra, G, ipos, m, acc):
-    if _none(extra):
-        return lambda extra, G, ipos, m, acc: None
-    from orbitsim.forces.kernels import add_position_forces
+@overload(refresh_accelerations, inline="always")
+def _refresh_accelerations(force, pos, vel, m, acc, derivative):
+    if _terms(force) is None:
+        return lambda force, pos, vel, m, acc, derivative: None
+    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of
+    from orbitsim.physics.force_context import newtonian_accelerations
 
-    def impl(extra, G, ipos, m, acc):
-        add_position_forces(ipos, m, G, extra[0], extra[1], extra[2], extra[3], acc)
+    def impl(force, pos, vel, m, acc, derivative):
+        forces = force.forces
+        newtonian_accelerations(force, pos, m, acc)
+        add_position_forces_of(forces.terms, pos, m, force.G, acc)
+        if derivative:
+            add_velocity_forces_of(forces.terms, pos, vel, m, force.G, acc, forces.scratch)
     return impl
 
 
 @overload(record_force_energy, inline="always")
 def _record_force_energy(force, pos, vel, m, scalars, r):
-    if not is_forced(force):
+    if _terms(force) is None:
         return lambda force, pos, vel, m, scalars, r: None
     from orbitsim.forces.kernels import force_energy
 
     def impl(force, pos, vel, m, scalars, r):
-        extra = force[4]
-        scalars[r, 1] += force_energy(pos, vel, m, force[0], extra[0], extra[1], extra[2], extra[3])
+        scalars[r, 1] += force_energy(pos, vel, m, force.G, force.forces.terms)
     return impl

@@ -1,9 +1,12 @@
-"""The four entry points the forced stepping loops call, dispatching on the rows of a ForceSet.
+"""What the forces of a run do, per force record: the entry points the stepping code calls.
 
-Each takes the arrays of :attr:`orbitsim.forces.table.ForceSet.arrays` unpacked after its fixed
-arguments, loops over the force rows and branches on the id, so one compiled kernel serves every
-combination of forces. Nothing here allocates (the ``gr_full`` energy excepted, at sample times):
-the velocity-dependent forces work in the rows of :func:`make_force_scratch`.
+Each entry point takes the run's ``terms`` (:func:`orbitsim.forces.terms.terms_of`: one record per
+force, in the scenario's order, each record its own Numba type) and applies them one after another.
+The walk over the tuple is unrolled when a caller is compiled (each step takes the tuple's head
+and a static slice of its tail), and each record
+resolves to its own kernel, so a run compiles the kernels of its own forces and no others. Nothing
+here allocates (the ``gr_full`` energy excepted, at sample times): the velocity-dependent forces
+work in the rows of :func:`make_force_scratch`.
 
 * :func:`add_position_forces`: ``gr_potential`` and ``harmonics``, kicked with gravity.
 * :func:`add_velocity_forces`: ``gr``, ``gr_full`` and ``migration`` at a (pos, vel), for the
@@ -11,16 +14,22 @@ the velocity-dependent forces work in the rows of :func:`make_force_scratch`.
 * :func:`velocity_operator`: the same forces as an operator on the velocities over h with the
   positions fixed, for the symplectic schemes (Tamayo, Rein, Shi & Hernandez 2020, MNRAS 491,
   2885): REBOUNDx ``integrate_force`` with its implicit midpoint integrator, one operator per
-  force in row order (as REBOUNDx runs one operator per force added).
+  force in order (as REBOUNDx runs one operator per force added).
 * :func:`force_energy`: what each force adds to the Newtonian energy to give its conserved
   quantity.
+
+The ``*_of`` functions are the same walks for jitted callers, inlined at Numba's IR level (the
+hooks of :mod:`orbitsim.forces.hooks` call them from inside a step); the entry points wrap them
+for Python callers and tests.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import types
+from numba.extending import overload
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.gr import (
     MAX_ITERATIONS,
     gr_accelerations,
@@ -31,10 +40,10 @@ from orbitsim.forces.gr import (
 from orbitsim.forces.gr_full import WORK_ROWS, gr_full_accelerations, gr_full_energy
 from orbitsim.forces.harmonics import harmonics_accelerations, harmonics_potential
 from orbitsim.forces.migration import centre_of_mass, migration_accelerations
-from orbitsim.forces.table import GR, GR_FULL, GR_POTENTIAL, HARMONICS, MIGRATION, P_C, P_J2, P_J4, P_R_EQ, P_SPIN
+from orbitsim.forces.terms import GRFullTerm, GRPotentialTerm, GRTerm, HarmonicsTerm, MigrationTerm
 
-__all__ = ["SCRATCH_ROWS", "add_position_forces", "add_velocity_forces", "force_energy", "make_force_scratch",
-           "velocity_operator"]
+__all__ = ["SCRATCH_ROWS", "add_position_forces", "add_velocity_forces", "force_energy", "has_velocity_terms",
+           "make_force_scratch", "velocity_operator"]
 
 #: Rows of the operator's own state: v at the start, the latest and the previous estimate of v at
 #: the end, the midpoint v, the acceleration there (3 rows each).
@@ -52,45 +61,184 @@ def make_force_scratch(n: int) -> np.ndarray:
     return np.zeros((SCRATCH_ROWS, n))
 
 
-@jit
-def add_position_forces(pos, m, G, ids, source, params, per_body, acc):
-    """acc (3, N) += the accelerations of the position-only forces (gr_potential, harmonics)."""
-    for k in range(ids.shape[0]):
-        fid = ids[k]
-        if fid == GR_POTENTIAL:
-            gr_potential_accelerations(pos, m, G, source[k], params[k, P_C], acc)
-        elif fid == HARMONICS:
-            harmonics_accelerations(pos, m, G, source[k], params[k, P_J2], params[k, P_J4], params[k, P_R_EQ],
-                                    params[k, P_SPIN], params[k, P_SPIN + 1], params[k, P_SPIN + 2], acc)
+def _record(term: types.Type) -> type | None:
+    """The record class of a term's Numba type (None for another type)."""
+    return getattr(term, "instance_class", None) if isinstance(term, types.BaseNamedTuple) else None
 
 
-@jit
-def _velocity_force(pos, vel, m, G, fid, src, c, taus, com, acc, work):
+def has_velocity_terms(terms: types.Type) -> bool:
+    """True when a terms tuple's Numba type holds a velocity-dependent force (typing time)."""
+    return any(_record(t) in (GRTerm, GRFullTerm, MigrationTerm) for t in terms)
+
+
+# -- one record ---------------------------------------------------------------------------------
+# The Python stand-ins are never run: jitted callers only; the overloads give their meaning.
+
+def _position_term(term, pos, m, G, acc):
+    """acc += one position-only force (nothing for a velocity-dependent one)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def _velocity_term(term, pos, vel, m, G, com, acc, work):
     """acc += one velocity-dependent force at (pos, vel); ``com`` as the force reads it."""
-    if fid == GR:
-        gr_accelerations(pos, vel, m, G, src, c, acc, work)
-    elif fid == GR_FULL:
-        gr_full_accelerations(pos, vel, m, G, c, com, acc, work)
-    elif fid == MIGRATION:
-        migration_accelerations(pos, vel, m, taus, com, acc)
+    raise NotImplementedError("called from jitted code only")
 
 
-@jit
-def add_velocity_forces(pos, vel, m, G, ids, source, params, per_body, acc, scratch):
-    """acc (3, N) += the accelerations of the velocity-dependent forces (gr, gr_full, migration)."""
-    work = scratch[_OP_ROWS:]
-    for k in range(ids.shape[0]):
-        fid = ids[k]
-        if fid == GR:
-            gr_accelerations(pos, vel, m, G, source[k], params[k, P_C], acc, work)
-        elif fid == GR_FULL or fid == MIGRATION:
-            # Their centre of mass is that of the state they are evaluated at (REBOUND's IAS15 and
-            # RK steps call REBOUNDx with the simulation's particles at that state).
-            com = centre_of_mass(pos, vel, m)
-            _velocity_force(pos, vel, m, G, fid, source[k], params[k, P_C], per_body[k], com, acc, work)
+def _com_for(term, pos, vel, m):
+    """The centre of mass a velocity-dependent force reads (None for gr, which reads none)."""
+    raise NotImplementedError("called from jitted code only")
 
 
-@jit
+def _derivative_term(term, pos, vel, m, G, acc, scratch):
+    """acc += one velocity-dependent force at (pos, vel) in an equation of motion (nothing for a
+    position-only one)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def _term_energy(term, pos, vel, m, G, e):
+    """e + what one force adds to the energy (e itself for migration, which dissipates)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def _midpoint_term(term, pos, vel, m, G, h, scratch):
+    """One force's implicit-midpoint operator over h (nothing for a position-only one)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+@overload(_position_term, inline="always")
+def _ol_position_term(term, pos, m, G, acc):
+    kind = _record(term)
+    if kind is GRPotentialTerm:
+        return lambda term, pos, m, G, acc: gr_potential_accelerations(pos, m, G, term.source, term.c, acc)
+    if kind is HarmonicsTerm:
+        return lambda term, pos, m, G, acc: harmonics_accelerations(
+            pos, m, G, term.source, term.J2, term.J4, term.R_eq, term.spin_x, term.spin_y, term.spin_z, acc)
+    return lambda term, pos, m, G, acc: None
+
+
+@overload(_velocity_term, inline="always")
+def _ol_velocity_term(term, pos, vel, m, G, com, acc, work):
+    kind = _record(term)
+    if kind is GRTerm:
+        return lambda term, pos, vel, m, G, com, acc, work: gr_accelerations(pos, vel, m, G, term.source, term.c, acc,
+                                                                             work)
+    if kind is GRFullTerm:
+        return lambda term, pos, vel, m, G, com, acc, work: gr_full_accelerations(pos, vel, m, G, term.c, com, acc,
+                                                                                  work)
+    if kind is MigrationTerm:
+        return lambda term, pos, vel, m, G, com, acc, work: migration_accelerations(pos, vel, m, term.taus, com, acc)
+    return lambda term, pos, vel, m, G, com, acc, work: None
+
+
+@overload(_com_for, inline="always")
+def _ol_com_for(term, pos, vel, m):
+    if _record(term) in (GRFullTerm, MigrationTerm):
+        return lambda term, pos, vel, m: centre_of_mass(pos, vel, m)
+    return lambda term, pos, vel, m: None
+
+
+@overload(_derivative_term, inline="always")
+def _ol_derivative_term(term, pos, vel, m, G, acc, scratch):
+    if _record(term) not in (GRTerm, GRFullTerm, MigrationTerm):
+        return lambda term, pos, vel, m, G, acc, scratch: None
+
+    def impl(term, pos, vel, m, G, acc, scratch):
+        # The centre of mass is that of the state the forces are evaluated at (REBOUND's IAS15 and RK
+        # steps call REBOUNDx with the simulation's particles at that state).
+        _velocity_term(term, pos, vel, m, G, _com_for(term, pos, vel, m), acc, scratch[_OP_ROWS:])
+    return impl
+
+
+@overload(_term_energy, inline="always")
+def _ol_term_energy(term, pos, vel, m, G, e):
+    kind = _record(term)
+    if kind is GRPotentialTerm:
+        return lambda term, pos, vel, m, G, e: e + gr_potential_energy(pos, m, G, term.source, term.c)
+    if kind is HarmonicsTerm:
+        return lambda term, pos, vel, m, G, e: e + harmonics_potential(
+            pos, m, G, term.source, term.J2, term.J4, term.R_eq, term.spin_x, term.spin_y, term.spin_z)
+    if kind is GRTerm:
+        return lambda term, pos, vel, m, G, e: e + gr_energy(pos, vel, m, G, term.source, term.c)
+    if kind is GRFullTerm:
+        return lambda term, pos, vel, m, G, e: e + gr_full_energy(pos, vel, m, G, term.c)
+    return lambda term, pos, vel, m, G, e: e
+
+
+@overload(_midpoint_term, inline="always")
+def _ol_midpoint_term(term, pos, vel, m, G, h, scratch):
+    if _record(term) in (GRTerm, GRFullTerm, MigrationTerm):
+        return lambda term, pos, vel, m, G, h, scratch: _implicit_midpoint(term, pos, vel, m, G, h, scratch)
+    return lambda term, pos, vel, m, G, h, scratch: None
+
+
+# -- the walks over a run's records ------------------------------------------------------------
+
+def add_position_forces_of(terms, pos, m, G, acc):
+    """acc (3, N) += the position-only forces (gr_potential, harmonics), in order."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def add_velocity_forces_of(terms, pos, vel, m, G, acc, scratch):
+    """acc (3, N) += the velocity-dependent forces (gr, gr_full, migration) at (pos, vel), in order."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def velocity_operator_of(terms, pos, vel, m, G, h, scratch):
+    """``vel`` advanced over h under the velocity-dependent forces, positions fixed, in order."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def force_energy_of(terms, pos, vel, m, G, e):
+    """e + the forces' energy, in order."""
+    raise NotImplementedError("called from jitted code only")
+
+
+@overload(add_position_forces_of, inline="always")
+def _ol_add_position_forces_of(terms, pos, m, G, acc):
+    if len(terms) == 0:
+        return lambda terms, pos, m, G, acc: None
+
+    def impl(terms, pos, m, G, acc):
+        _position_term(terms[0], pos, m, G, acc)
+        add_position_forces_of(terms[1:], pos, m, G, acc)
+    return impl
+
+
+@overload(add_velocity_forces_of, inline="always")
+def _ol_add_velocity_forces_of(terms, pos, vel, m, G, acc, scratch):
+    if len(terms) == 0:
+        return lambda terms, pos, vel, m, G, acc, scratch: None
+
+    def impl(terms, pos, vel, m, G, acc, scratch):
+        _derivative_term(terms[0], pos, vel, m, G, acc, scratch)
+        add_velocity_forces_of(terms[1:], pos, vel, m, G, acc, scratch)
+    return impl
+
+
+@overload(velocity_operator_of, inline="always")
+def _ol_velocity_operator_of(terms, pos, vel, m, G, h, scratch):
+    if len(terms) == 0:
+        return lambda terms, pos, vel, m, G, h, scratch: None
+
+    def impl(terms, pos, vel, m, G, h, scratch):
+        _midpoint_term(terms[0], pos, vel, m, G, h, scratch)
+        velocity_operator_of(terms[1:], pos, vel, m, G, h, scratch)
+    return impl
+
+
+@overload(force_energy_of, inline="always")
+def _ol_force_energy_of(terms, pos, vel, m, G, e):
+    if len(terms) == 0:
+        return lambda terms, pos, vel, m, G, e: e
+
+    def impl(terms, pos, vel, m, G, e):
+        return force_energy_of(terms[1:], pos, vel, m, G, _term_energy(terms[0], pos, vel, m, G, e))
+    return impl
+
+
+# -- the implicit midpoint ----------------------------------------------------------------------
+
+@jit_inline
 def _converged(vf, vp):
     """REBOUNDx's implicit-midpoint test: sum |v_new - v_prev|^2 / sum |v_new|^2 < eps^2."""
     delta = 0.0
@@ -105,9 +253,10 @@ def _converged(vf, vp):
 
 
 @jit
-def _implicit_midpoint(pos, vel, m, G, fid, src, c, taus, h, scratch):
-    """v(h) = v(0) + h a(pos, (v(0) + v(h)) / 2), solved by fixed-point iteration (REBOUNDx's
-    ``integrator_implicit_midpoint``: the first estimate takes a at v(0); at most 10 iterations).
+def _implicit_midpoint(term, pos, vel, m, G, h, scratch):
+    """v(h) = v(0) + h a(pos, (v(0) + v(h)) / 2) for one velocity-dependent force, solved by
+    fixed-point iteration (REBOUNDx's ``integrator_implicit_midpoint``: the first estimate takes a
+    at v(0); at most 10 iterations).
 
     The centre of mass the force reads is that of the state before the step, as in REBOUNDx,
     whose simulation particles keep their velocities until the operator ends.
@@ -115,14 +264,18 @@ def _implicit_midpoint(pos, vel, m, G, fid, src, c, taus, h, scratch):
     n = pos.shape[1]
     v0, vf, vp, va, a = scratch[0:3], scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
     work = scratch[_OP_ROWS:]
-    v0[:, :] = vel
-    vf[:, :] = vel
-    va[:, :] = vel
-    com = centre_of_mass(pos, vel, m)
+    for k in range(3):  # explicit loops, not slice assignments: they cost more than a few bodies' arithmetic
+        for i in range(n):
+            v0[k, i] = vel[k, i]
+            vf[k, i] = vel[k, i]
+            va[k, i] = vel[k, i]
+    com = _com_for(term, pos, vel, m)
     for _ in range(_MIDPOINT_ITERATIONS):
-        vp[:, :] = vf
-        a[:, :] = 0.0
-        _velocity_force(pos, va, m, G, fid, src, c, taus, com, a, work)
+        for k in range(3):
+            for i in range(n):
+                vp[k, i] = vf[k, i]
+                a[k, i] = 0.0
+        _velocity_term(term, pos, va, m, G, com, a, work)
         for k in range(3):
             for i in range(n):
                 vf[k, i] = v0[k, i] + h * a[k, i]
@@ -131,34 +284,35 @@ def _implicit_midpoint(pos, vel, m, G, fid, src, c, taus, h, scratch):
         for k in range(3):
             for i in range(n):
                 va[k, i] = 0.5 * (v0[k, i] + vf[k, i])
-    vel[:, :] = vf
+    for k in range(3):
+        for i in range(n):
+            vel[k, i] = vf[k, i]
+
+
+# -- entry points for Python callers and tests --------------------------------------------------
+
+@jit
+def add_position_forces(pos, m, G, terms, acc):
+    """acc (3, N) += the accelerations of the position-only forces (gr_potential, harmonics)."""
+    add_position_forces_of(terms, pos, m, G, acc)
 
 
 @jit
-def velocity_operator(pos, vel, m, G, ids, source, params, per_body, h, scratch):
+def add_velocity_forces(pos, vel, m, G, terms, acc, scratch):
+    """acc (3, N) += the accelerations of the velocity-dependent forces (gr, gr_full, migration)."""
+    add_velocity_forces_of(terms, pos, vel, m, G, acc, scratch)
+
+
+@jit
+def velocity_operator(pos, vel, m, G, terms, h, scratch):
     """Advance ``vel`` in place over h under the velocity-dependent forces, positions fixed: one
-    implicit-midpoint operator per force, in row order."""
-    for k in range(ids.shape[0]):
-        fid = ids[k]
-        if fid == GR or fid == GR_FULL or fid == MIGRATION:
-            _implicit_midpoint(pos, vel, m, G, fid, source[k], params[k, P_C], per_body[k], h, scratch)
+    implicit-midpoint operator per force, in order."""
+    velocity_operator_of(terms, pos, vel, m, G, h, scratch)
 
 
 @jit
-def force_energy(pos, vel, m, G, ids, source, params, per_body):
+def force_energy(pos, vel, m, G, terms):
     """What to add to the Newtonian kinetic + potential energy to get the conserved quantity:
     the potentials of gr_potential and harmonics, the 1PN Hamiltonians' corrections of gr and
     gr_full, nothing for migration (dissipative)."""
-    e = 0.0
-    for k in range(ids.shape[0]):
-        fid = ids[k]
-        if fid == GR_POTENTIAL:
-            e += gr_potential_energy(pos, m, G, source[k], params[k, P_C])
-        elif fid == HARMONICS:
-            e += harmonics_potential(pos, m, G, source[k], params[k, P_J2], params[k, P_J4], params[k, P_R_EQ],
-                                     params[k, P_SPIN], params[k, P_SPIN + 1], params[k, P_SPIN + 2])
-        elif fid == GR:
-            e += gr_energy(pos, vel, m, G, source[k], params[k, P_C])
-        elif fid == GR_FULL:
-            e += gr_full_energy(pos, vel, m, G, params[k, P_C])
-    return e
+    return force_energy_of(terms, pos, vel, m, G, 0.0)

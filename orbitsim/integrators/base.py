@@ -1,4 +1,4 @@
-"""The integrator record every scheme declares, and the jitted pieces the schemes share.
+"""The integrator record every scheme declares, and the loops and pieces the schemes share.
 
 Each scheme is one :class:`Integrator` record (``VERLET``, ``IAS15``, ...; the registry,
 :mod:`orbitsim.integrators.registry`, lists them), with every hook the engine calls declared in
@@ -8,17 +8,17 @@ it and a default where a scheme has nothing to say. Callers use the record's fie
 1. ``spec``: an :class:`IntegratorSpec` (name, aliases, order, symplecticity, reversibility, force
    evaluations per step, scratch slots, citation).
 2. ``step(pos, vel, acc, m, force, dt, work)``: one whole step of size ``dt``, in place.
-   ``pos``, ``vel``, ``acc`` are ``(3, N)``; ``m`` is ``(N,)``; ``force`` is the context from
-   :func:`orbitsim.physics.gravity.make_force`; ``work`` is what ``make_work`` made.
-   On entry ``acc`` holds the accelerations at ``pos``; on exit it holds those at the new ``pos``
-   when ``spec.fsal`` is true (first-same-as-last: kick-drift-kick schemes reuse the last force
-   evaluation), otherwise whatever the scheme last evaluated. Steps call gravity as a module
-   global, never as an argument, so they hit Numba's on-disk cache.
-3. ``run(state, force, dt, work, t0, n_done, targets, record, out)``: the fixed-dt loop. For each
+   ``pos``, ``vel``, ``acc`` are ``(3, N)``; ``m`` is ``(N,)``; ``force`` is the force context
+   of :func:`orbitsim.physics.force_context.make_force` (a run's forces in its ``forces`` field); ``work``
+   is what ``make_work`` made. On entry ``acc`` holds the accelerations at ``pos``; on exit it
+   holds those at the new ``pos`` when ``spec.fsal`` is true (first-same-as-last: kick-drift-kick
+   schemes reuse the last force evaluation), otherwise whatever the scheme last evaluated.
+3. ``run(state, force, dt, work, t0, n_done, targets, record, out)``: the loop of a run. For each
    ``k`` it takes whole steps until the step count reaches ``targets[k]`` and, when ``record[k]``,
    writes a sample with :func:`record_sample`. Returns ``(samples_written, n_done, finite)``; it
-   stops early, with ``finite`` false, at the first sample whose state is not finite. A step is
-   never shortened: sample times fall on whole steps.
+   stops early, with ``finite`` false, at the first sample whose state is not finite or when the
+   scheme fails (a Kepler solve, a Bulirsch-Stoer sub-step). A step is never shortened: sample
+   times fall on whole steps (an adaptive scheme's "step" is its output grid, ias15).
 4. ``run_watched(..., out, watch)``: ``run`` with the events check after every step
    (:mod:`orbitsim.events`); a fourth result, True when the call stopped for the Python side.
 5. ``settings``: what a scenario may give (``integrator: {name: ..., <key>: <value>}``), key ->
@@ -42,18 +42,32 @@ it and a default where a scheme has nothing to say. Callers use the record's fie
     sub-steps, for the events' unresolved-step check. Default: None.
 15. ``run_constants``: indices of ``work`` entries a restored checkpoint does not override (the
     run's own end time). Default: none.
-16. ``kicks``, ``drifts``: the coefficient tables of a drift-kick-drift composition (the forced
-    loops of :mod:`orbitsim.forces.stepping` step it by them). Default: None.
+16. ``kicks``, ``drifts``: the coefficient tables of a drift-kick-drift composition. Default: None.
 
-``run`` lives with each scheme (it is a few lines) rather than in one dispatcher because a
-jitted function that receives another as an argument never hits the on-disk cache, and a single
-switch over every scheme would compile all of them on a user's first run.
+One loop, each scheme's own steps
+---------------------------------
+Every scheme writes the steps between two samples once, as an ``advance``:
 
-The steps between two samples are written once per scheme, as an inlined
-``advance(..., steps)`` that both ``step`` (one step) and ``run`` (the steps up to the next
-sample) use. It unpacks the force context once and calls the force kernels from its own loop.
-An inlined helper that made the call would take and release a reference to each array it is
-given on every step (:mod:`orbitsim.physics.gravity` says why).
+    advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to) -> (n_done, ok)
+
+takes the steps from ``n_done`` to ``n_to`` in place and returns the step count it reached and
+False when the scheme failed. Its ``run`` is :func:`sample_loop` around it, and its ``run_watched``
+:func:`orbitsim.events.kernels.watched_run` around it (one step per call, the events check after
+each); ``step`` is one step of it. ias15 and trace, which take sub-steps of their own inside a
+step, watch those inside their own ``advance`` and keep their own watched loops.
+
+Both loops are inlined (:func:`orbitsim._jit.jit_inline`) into each scheme's cached ``@jit run``,
+which hands them its ``advance`` as an argument. That caches fully: Numba resolves the argument
+when the scheme's ``run`` is compiled, and the cache entry is that ``run``'s. (What never hits the
+on-disk cache is a jitted function passed *from Python* to a jitted one, or a closure built by a
+factory: one ``run`` per scheme, each naming its own ``advance``, is what keeps every scheme in
+the cache.) A single switch over every scheme would compile all of them on a user's first run.
+
+Forces reach every scheme through the hooks of :mod:`orbitsim.forces.hooks`, which compile to
+nothing for a force context without forces: position-only forces join gravity in each force
+evaluation, velocity-dependent ones are the equations of motion of euler, rk4 and ias15 and an
+operator around each step of the symplectic schemes. Each ``advance`` unpacks what it needs once
+and calls the force kernels from its own loop body (:mod:`orbitsim.physics.gravity` says why).
 """
 
 from __future__ import annotations
@@ -66,12 +80,7 @@ import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.hooks import record_force_energy
-from orbitsim.physics.diagnostics import (
-    angular_momentum_into,
-    kinetic_energy,
-    momentum_into,
-    potential_energy,
-)
+from orbitsim.physics.diagnostics import angular_momentum_into, kinetic_energy, momentum_into, potential_of
 
 #: Columns of the ``scalars`` sample buffer.
 SCALAR_COLUMNS = ("kinetic", "potential", "px", "py", "pz", "lx", "ly", "lz")
@@ -231,7 +240,7 @@ def is_finite_state(pos, vel):
 
 
 @jit
-def record_sample(r, n_done, t0, dt, pos, vel, m, force, out):
+def record_sample(r, n_done, time, pos, vel, m, force, out):
     """Write sample ``r`` (time, step, energies, momenta, optionally the state) into ``out``.
 
     ``out`` is ``(times, steps, scalars, snapshots, rows)``: ``scalars`` (S, 8) in the order of
@@ -241,10 +250,10 @@ def record_sample(r, n_done, t0, dt, pos, vel, m, force, out):
     if not is_finite_state(pos, vel):
         return False
     times, steps, scalars, snapshots, rows = out
-    times[r] = t0 + n_done * dt
+    times[r] = time
     steps[r] = n_done
     scalars[r, 0] = kinetic_energy(vel, m)
-    scalars[r, 1] = potential_energy(pos, m, force[0], force[1], rows)
+    scalars[r, 1] = potential_of(force, pos, m, rows)
     record_force_energy(force, pos, vel, m, scalars, r)  # a forced run's potential includes the forces'
     momentum_into(vel, m, scalars[r, 2:5])
     angular_momentum_into(pos, vel, m, scalars[r, 5:8])
@@ -256,3 +265,33 @@ def record_sample(r, n_done, t0, dt, pos, vel, m, force, out):
                 snapshots[r, 0, c, i] = pos[c, i]
                 snapshots[r, 1, c, i] = vel[c, i]
     return True
+
+
+@jit_inline
+def grid_time(work, t0, n_done, dt):
+    """The time of step ``n_done`` on the run's grid, ``t0 + n dt``: the sample time of every
+    scheme that does not keep a clock of its own."""
+    return t0 + n_done * dt
+
+
+@jit_inline
+def sample_loop(advance, sample_time, state, force, dt, work, t0, n_done, targets, record, out):
+    """The ``run`` of every scheme: ``advance`` to each target, a sample where ``record`` says.
+
+    ``advance`` is the scheme's (module docstring); ``sample_time(work, t0, n_done, dt)`` the time
+    a sample is stamped with (:func:`grid_time`, or an adaptive scheme's clock). Returns
+    ``(samples_written, n_done, finite)``: ``finite`` is False when the scheme failed or a sample's
+    state was not finite, and the loop stops there.
+    """
+    pos, vel, acc, m = state
+    written = np.int64(0)  # not the literal 0: record_sample would compile twice (for Literal[int](0) and int64)
+    for k in range(targets.shape[0]):
+        if n_done < targets[k]:
+            n_done, ok = advance(pos, vel, acc, m, force, dt, work, t0, n_done, targets[k])
+            if not ok:
+                return written, n_done, False
+        if record[k]:
+            if not record_sample(written, n_done, sample_time(work, t0, n_done, dt), pos, vel, m, force, out):
+                return written, n_done, False
+            written += 1
+    return written, n_done, True

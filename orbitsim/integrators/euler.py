@@ -11,8 +11,9 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.integrators.base import Integrator, IntegratorSpec, record_sample
-from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
+from orbitsim.forces.hooks import add_forces, refresh_accelerations
+from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sample_loop
+from orbitsim.physics.force_context import newtonian_accelerations
 
 SPEC = IntegratorSpec(
     name="euler",
@@ -31,52 +32,39 @@ SPEC = IntegratorSpec(
 
 
 @jit_inline
-def advance(pos, vel, acc, m, force, dt, work, steps):
-    """``steps`` explicit Euler steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
-
-    The force kernels are called from this loop, not through an inlined helper: see
-    :mod:`orbitsim.physics.gravity`.
-    """
-    G, eps2, slabs, bounds = force
-    small = pos.shape[1] <= SMALL_N_MAX
-    for _ in range(steps):
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Explicit Euler steps from ``n_done`` to ``n_to``; ``acc`` holds the accelerations at (pos,
+    vel) on entry and exit (gravity and every force: they are the equations of motion)."""
+    for _ in range(n_to - n_done):
         for c in range(3):
             for i in range(pos.shape[1]):
                 v_old = vel[c, i]
                 vel[c, i] = v_old + dt * acc[c, i]
                 pos[c, i] += dt * v_old
-        if small:
-            all_pairs_accelerations(pos, m, G, eps2, acc)
-        else:
-            accelerations(pos, m, G, eps2, acc, slabs, bounds)
+        newtonian_accelerations(force, pos, m, acc)
+        add_forces(force, pos, vel, m, acc)
+    return n_to, True
 
 
 @jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One explicit Euler step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
-    advance(pos, vel, acc, m, force, dt, work, 1)
+    advance(pos, vel, acc, m, force, dt, work, 0.0, 0, 1)
 
 
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`advance` (contract in :mod:`orbitsim.integrators.base`)."""
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
     pos, vel, acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        if n_done < targets[k]:
-            advance(pos, vel, acc, m, force, dt, work, targets[k] - n_done)
-            n_done = targets[k]
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    refresh_accelerations(force, pos, vel, m, acc, True)
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 EULER = Integrator(spec=SPEC, step=step, run=run, run_watched=run_watched)

@@ -32,11 +32,11 @@ The tables are those REBOUND's ``leapfrog`` integrator uses for ``order`` 2, 4, 
 substeps and agree to round-off. :func:`drift_coefficients` forms the drifts exactly as REBOUND
 does: ``(w_i + w_{i+1}) * 0.5``, where the product by 0.5 is exact.
 
-Each order has its own jitted ``step``, ``run`` and ``run_watched`` (``step2``, ``run2``, ...,
-``run_watched8``), each reading its order's tables as module globals, which Numba compiles in as
-constants: one function per order is what keeps every order in the on-disk cache (a factory's
-closures would miss it) and its machine code as it was. The loop they share, :func:`run_dkd`,
-takes the tables as arguments and caches once for all four.
+Each order has its own ``advance``, ``step``, ``run`` and ``run_watched`` (``advance2``, ``step2``,
+``run2``, ..., ``run_watched8``), each reading its order's tables as module globals, which Numba
+compiles in as constants: one function per order is what keeps every order in the on-disk cache
+(a factory's closures would miss it) and compiles only the order a run uses. The steps they share,
+:func:`advance_dkd`, take the tables as arguments.
 """
 
 from __future__ import annotations
@@ -45,8 +45,9 @@ import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, kick_drift, record_sample
-from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
+from orbitsim.forces.hooks import add_kick_forces, refresh_accelerations, velocity_operator
+from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, grid_time, kick_drift, sample_loop
+from orbitsim.physics.force_context import newtonian_accelerations
 
 #: Order 2: the plain drift-kick-drift leapfrog, one substep.
 LEAPFROG2_WEIGHTS = np.array([1.0])
@@ -95,48 +96,21 @@ def drift_coefficients(weights: np.ndarray) -> np.ndarray:
 @jit_inline
 def advance_dkd(pos, vel, acc, m, force, dt, steps, drifts, kicks):
     """``steps`` composed steps, each a drift(d_0 dt), then for each substep an evaluation, kick and
-    drift.
+    drift; velocity-dependent forces are an operator around each step, ``V(dt/2) S(dt) V(dt/2)``
+    (nothing without them).
 
-    ``acc`` is not read on entry; on exit it holds the accelerations of the last kick, which were
-    evaluated half a substep before the final positions. The force kernels are called from this
-    loop, not through an inlined helper: see :mod:`orbitsim.physics.gravity`.
+    ``acc`` is not read on entry; on exit it holds the accelerations of the last kick (gravity and
+    the position-only forces), which were evaluated half a substep before the final positions.
     """
-    G, eps2, slabs, bounds = force
-    small = pos.shape[1] <= SMALL_N_MAX
+    half_dt = 0.5 * dt
     for _ in range(steps):
+        velocity_operator(force, pos, vel, m, half_dt)
         drift(pos, vel, dt * drifts[0])
         for s in range(kicks.shape[0]):
-            if small:
-                all_pairs_accelerations(pos, m, G, eps2, acc)
-            else:
-                accelerations(pos, m, G, eps2, acc, slabs, bounds)
+            newtonian_accelerations(force, pos, m, acc)
+            add_kick_forces(force, pos, m, acc)
             kick_drift(pos, vel, acc, dt * kicks[s], dt * drifts[s + 1])
-
-
-@jit_inline
-def compose_dkd(pos, vel, acc, m, force, dt, drifts, kicks):
-    """One composed step (:func:`advance_dkd`)."""
-    advance_dkd(pos, vel, acc, m, force, dt, 1, drifts, kicks)
-
-
-@jit
-def run_dkd(state, force, dt, work, t0, n_done, targets, record, out, drifts, kicks):
-    """Fixed-dt loop of :func:`advance_dkd` for one coefficient table.
-
-    The four orders share this loop (tables are data, so it caches once for all of them); the
-    contract is :mod:`orbitsim.integrators.base`'s ``run``.
-    """
-    pos, vel, acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        if n_done < targets[k]:
-            advance_dkd(pos, vel, acc, m, force, dt, targets[k] - n_done, drifts, kicks)
-            n_done = targets[k]
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+        velocity_operator(force, pos, vel, m, half_dt)
 
 
 # -- order 2: leapfrog --------------------------------------------------------------------------
@@ -145,22 +119,32 @@ KICKS2 = LEAPFROG2_WEIGHTS
 DRIFTS2 = drift_coefficients(KICKS2)
 
 
+@jit_inline
+def advance2(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to`` of order 2 (:func:`advance_dkd` with its tables)."""
+    advance_dkd(pos, vel, acc, m, force, dt, n_to - n_done, DRIFTS2, KICKS2)
+    return n_to, True
+
+
 @jit
 def step2(pos, vel, acc, m, force, dt, work):
     """One leapfrog step of size ``dt`` (1 force evaluation), in place."""
-    compose_dkd(pos, vel, acc, m, force, dt, DRIFTS2, KICKS2)
+    advance_dkd(pos, vel, acc, m, force, dt, 1, DRIFTS2, KICKS2)
 
 
 @jit
 def run2(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`step2` (contract in :mod:`orbitsim.integrators.base`)."""
-    return run_dkd(state, force, dt, work, t0, n_done, targets, record, out, DRIFTS2, KICKS2)
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance2`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return sample_loop(advance2, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched2(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run2` one :func:`step2` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step2, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run2` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance2, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 LEAPFROG = Integrator(
@@ -192,22 +176,32 @@ KICKS4 = LEAPFROG4_WEIGHTS
 DRIFTS4 = drift_coefficients(KICKS4)
 
 
+@jit_inline
+def advance4(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to`` of order 4 (:func:`advance_dkd` with its tables)."""
+    advance_dkd(pos, vel, acc, m, force, dt, n_to - n_done, DRIFTS4, KICKS4)
+    return n_to, True
+
+
 @jit
 def step4(pos, vel, acc, m, force, dt, work):
     """One leapfrog4 step of size ``dt`` (3 force evaluations), in place."""
-    compose_dkd(pos, vel, acc, m, force, dt, DRIFTS4, KICKS4)
+    advance_dkd(pos, vel, acc, m, force, dt, 1, DRIFTS4, KICKS4)
 
 
 @jit
 def run4(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`step4` (contract in :mod:`orbitsim.integrators.base`)."""
-    return run_dkd(state, force, dt, work, t0, n_done, targets, record, out, DRIFTS4, KICKS4)
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance4`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return sample_loop(advance4, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched4(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run4` one :func:`step4` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step4, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run4` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance4, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 LEAPFROG4 = Integrator(
@@ -238,22 +232,32 @@ KICKS6 = LEAPFROG6_WEIGHTS
 DRIFTS6 = drift_coefficients(KICKS6)
 
 
+@jit_inline
+def advance6(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to`` of order 6 (:func:`advance_dkd` with its tables)."""
+    advance_dkd(pos, vel, acc, m, force, dt, n_to - n_done, DRIFTS6, KICKS6)
+    return n_to, True
+
+
 @jit
 def step6(pos, vel, acc, m, force, dt, work):
     """One leapfrog6 step of size ``dt`` (9 force evaluations), in place."""
-    compose_dkd(pos, vel, acc, m, force, dt, DRIFTS6, KICKS6)
+    advance_dkd(pos, vel, acc, m, force, dt, 1, DRIFTS6, KICKS6)
 
 
 @jit
 def run6(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`step6` (contract in :mod:`orbitsim.integrators.base`)."""
-    return run_dkd(state, force, dt, work, t0, n_done, targets, record, out, DRIFTS6, KICKS6)
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance6`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return sample_loop(advance6, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched6(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run6` one :func:`step6` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step6, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run6` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance6, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 LEAPFROG6 = Integrator(
@@ -285,22 +289,32 @@ KICKS8 = LEAPFROG8_WEIGHTS
 DRIFTS8 = drift_coefficients(KICKS8)
 
 
+@jit_inline
+def advance8(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to`` of order 8 (:func:`advance_dkd` with its tables)."""
+    advance_dkd(pos, vel, acc, m, force, dt, n_to - n_done, DRIFTS8, KICKS8)
+    return n_to, True
+
+
 @jit
 def step8(pos, vel, acc, m, force, dt, work):
     """One leapfrog8 step of size ``dt`` (17 force evaluations), in place."""
-    compose_dkd(pos, vel, acc, m, force, dt, DRIFTS8, KICKS8)
+    advance_dkd(pos, vel, acc, m, force, dt, 1, DRIFTS8, KICKS8)
 
 
 @jit
 def run8(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`step8` (contract in :mod:`orbitsim.integrators.base`)."""
-    return run_dkd(state, force, dt, work, t0, n_done, targets, record, out, DRIFTS8, KICKS8)
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance8`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return sample_loop(advance8, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched8(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run8` one :func:`step8` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step8, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run8` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance8, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 LEAPFROG8 = Integrator(

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.integrators.base import Integrator, IntegratorSpec, record_sample
-from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
+from orbitsim.forces.hooks import add_forces, refresh_accelerations
+from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sample_loop
+from orbitsim.physics.force_context import newtonian_accelerations
 
 SPEC = IntegratorSpec(
     name="rk4",
@@ -56,67 +57,58 @@ def _stage(pos, x0, v0, k_x, acc, h, weight, sum_x, sum_v):
 
 
 @jit_inline
-def advance(pos, vel, acc, m, force, dt, work, steps):
-    """``steps`` RK4 steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """RK4 steps from ``n_done`` to ``n_to``; ``acc`` holds the accelerations at (pos, vel) on entry
+    and exit (gravity and every force: they are the equations of motion, evaluated at each stage's
+    positions and velocities).
 
-    ``work`` slots: x0, v0, sum of weighted k_x, sum of weighted k_v, current k_x. The force
-    kernels are called from this loop, not through an inlined helper: see
-    :mod:`orbitsim.physics.gravity`.
+    ``work`` slots: x0, v0, sum of weighted k_x, sum of weighted k_v, current k_x (the stage's
+    velocities).
     """
-    G, eps2, slabs, bounds = force
-    small = pos.shape[1] <= SMALL_N_MAX
     x0 = work[0]
     v0 = work[1]
     sum_x = work[2]
     sum_v = work[3]
     k_x = work[4]
     last = B_WEIGHTS[3]
-    for _ in range(steps):
+    for _ in range(n_to - n_done):
         x0[:, :] = pos
         v0[:, :] = vel
         k_x[:, :] = vel
         sum_x[:, :] = 0.0
         sum_v[:, :] = 0.0
-        for s in range(4):
-            if s < 3:
-                _stage(pos, x0, v0, k_x, acc, C_NODES[s] * dt, B_WEIGHTS[s], sum_x, sum_v)
-            else:
-                for c in range(3):
-                    for i in range(pos.shape[1]):
-                        pos[c, i] = x0[c, i] + dt * (sum_x[c, i] + last * k_x[c, i])
-                        vel[c, i] = v0[c, i] + dt * (sum_v[c, i] + last * acc[c, i])
-            if small:
-                all_pairs_accelerations(pos, m, G, eps2, acc)
-            else:
-                accelerations(pos, m, G, eps2, acc, slabs, bounds)
+        for s in range(3):
+            _stage(pos, x0, v0, k_x, acc, C_NODES[s] * dt, B_WEIGHTS[s], sum_x, sum_v)
+            newtonian_accelerations(force, pos, m, acc)
+            add_forces(force, pos, k_x, m, acc)
+        for c in range(3):
+            for i in range(pos.shape[1]):
+                pos[c, i] = x0[c, i] + dt * (sum_x[c, i] + last * k_x[c, i])
+                vel[c, i] = v0[c, i] + dt * (sum_v[c, i] + last * acc[c, i])
+        newtonian_accelerations(force, pos, m, acc)
+        add_forces(force, pos, vel, m, acc)
+    return n_to, True
 
 
 @jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One RK4 step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
-    advance(pos, vel, acc, m, force, dt, work, 1)
+    advance(pos, vel, acc, m, force, dt, work, 0.0, 0, 1)
 
 
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`advance` (contract in :mod:`orbitsim.integrators.base`)."""
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
     pos, vel, acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        if n_done < targets[k]:
-            advance(pos, vel, acc, m, force, dt, work, targets[k] - n_done)
-            n_done = targets[k]
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    refresh_accelerations(force, pos, vel, m, acc, True)
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 RK4 = Integrator(spec=SPEC, step=step, run=run, run_watched=run_watched)

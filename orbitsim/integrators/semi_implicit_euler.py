@@ -12,8 +12,9 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.integrators.base import Integrator, IntegratorSpec, kick_drift, record_sample
-from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
+from orbitsim.forces.hooks import add_kick_forces, refresh_accelerations, velocity_operator
+from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, kick_drift, sample_loop
+from orbitsim.physics.force_context import newtonian_accelerations
 
 SPEC = IntegratorSpec(
     name="semi_implicit_euler",
@@ -31,48 +32,39 @@ SPEC = IntegratorSpec(
 
 
 @jit_inline
-def advance(pos, vel, acc, m, force, dt, work, steps):
-    """``steps`` kick-then-drift steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
-
-    The force kernels are called from this loop, not through an inlined helper: see
-    :mod:`orbitsim.physics.gravity`.
-    """
-    G, eps2, slabs, bounds = force
-    small = pos.shape[1] <= SMALL_N_MAX
-    for _ in range(steps):
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Kick-then-drift steps from ``n_done`` to ``n_to``; ``acc`` holds the accelerations at ``pos``
+    on entry and exit (gravity and the position-only forces). Velocity-dependent forces are an
+    operator around each step, ``V(dt/2) S(dt) V(dt/2)`` (nothing without them)."""
+    half_dt = 0.5 * dt
+    for _ in range(n_to - n_done):
+        velocity_operator(force, pos, vel, m, half_dt)
         kick_drift(pos, vel, acc, dt, dt)
-        if small:
-            all_pairs_accelerations(pos, m, G, eps2, acc)
-        else:
-            accelerations(pos, m, G, eps2, acc, slabs, bounds)
+        newtonian_accelerations(force, pos, m, acc)
+        add_kick_forces(force, pos, m, acc)
+        velocity_operator(force, pos, vel, m, half_dt)
+    return n_to, True
 
 
 @jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One kick-then-drift step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
-    advance(pos, vel, acc, m, force, dt, work, 1)
+    advance(pos, vel, acc, m, force, dt, work, 0.0, 0, 1)
 
 
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`advance` (contract in :mod:`orbitsim.integrators.base`)."""
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
     pos, vel, acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        if n_done < targets[k]:
-            advance(pos, vel, acc, m, force, dt, work, targets[k] - n_done)
-            n_done = targets[k]
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 SEMI_IMPLICIT_EULER = Integrator(spec=SPEC, step=step, run=run, run_watched=run_watched)

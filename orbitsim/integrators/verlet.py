@@ -12,8 +12,9 @@ from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, kick, record_sample
-from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
+from orbitsim.forces.hooks import add_kick_forces, has_velocity_operator, refresh_accelerations, velocity_operator
+from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, grid_time, kick, sample_loop
+from orbitsim.physics.force_context import newtonian_accelerations
 
 SPEC = IntegratorSpec(
     name="verlet",
@@ -47,57 +48,59 @@ def _kick_kick_drift(pos, vel, acc, half_dt, dt):
 
 
 @jit_inline
-def advance(pos, vel, acc, m, force, dt, work, steps):
-    """``steps`` KDK steps; ``acc`` holds the accelerations at ``pos`` on entry and exit.
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """KDK steps from ``n_done`` to ``n_to``; ``acc`` holds the accelerations at ``pos`` on entry
+    and exit (gravity and the position-only forces).
 
     The steps run back to back, so each closing kick is fused with the next step's opening kick
-    and drift (:func:`_kick_kick_drift`); the state at the end is bit-identical to ``steps``
-    separate steps. The force kernels are called from this loop, not through an inlined helper:
-    see :mod:`orbitsim.physics.gravity`.
+    and drift (:func:`_kick_kick_drift`); the state at the end is bit-identical to separate steps.
+    With velocity-dependent forces each step is ``V(dt/2) KDK V(dt/2)``
+    (:func:`orbitsim.forces.hooks.velocity_operator`), and nothing is fused across the operator.
     """
+    steps = n_to - n_done
     if steps < 1:
-        return
-    G, eps2, slabs, bounds = force
-    small = pos.shape[1] <= SMALL_N_MAX
+        return n_done, True
     half_dt = 0.5 * dt
+    if has_velocity_operator(force):
+        for _ in range(steps):
+            velocity_operator(force, pos, vel, m, half_dt)
+            kick(vel, acc, half_dt)
+            drift(pos, vel, dt)
+            newtonian_accelerations(force, pos, m, acc)
+            add_kick_forces(force, pos, m, acc)
+            kick(vel, acc, half_dt)
+            velocity_operator(force, pos, vel, m, half_dt)
+        return n_to, True
     kick(vel, acc, half_dt)
     drift(pos, vel, dt)
     for s in range(steps):
         if s > 0:
             _kick_kick_drift(pos, vel, acc, half_dt, dt)
-        if small:
-            all_pairs_accelerations(pos, m, G, eps2, acc)
-        else:
-            accelerations(pos, m, G, eps2, acc, slabs, bounds)
+        newtonian_accelerations(force, pos, m, acc)
+        add_kick_forces(force, pos, m, acc)
     kick(vel, acc, half_dt)
+    return n_to, True
 
 
 @jit_inline
 def step(pos, vel, acc, m, force, dt, work):
     """One KDK step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
-    advance(pos, vel, acc, m, force, dt, work, 1)
+    advance(pos, vel, acc, m, force, dt, work, 0.0, 0, 1)
 
 
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop of :func:`advance` (contract in :mod:`orbitsim.integrators.base`)."""
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`; a forced run's ``acc``
+    afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
     pos, vel, acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        if n_done < targets[k]:
-            advance(pos, vel, acc, m, force, dt, work, targets[k] - n_done)
-            n_done = targets[k]
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
+    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 VERLET = Integrator(spec=SPEC, step=step, run=run, run_watched=run_watched)

@@ -30,8 +30,10 @@ from __future__ import annotations
 
 import numpy as np
 from numba import prange
+from numba.extending import overload
 
 from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
+from orbitsim.physics.force_context import AllPairs, Blocks, Rows, kernel_class
 
 #: Above this N the O(N^2) potential runs its rows in parallel (its rows are independent).
 PARALLEL_POTENTIAL_MIN_N = 384
@@ -178,6 +180,32 @@ def potential_energy(pos, m, G, eps2, rows):
     if rows.shape[0] == 0:
         return _potential_serial(pos, m, G, eps2)
     return _potential_parallel(pos, m, G, eps2, rows)
+
+
+def potential_of(force, pos, m, rows):
+    """:func:`potential_energy` at ``pos`` with the force context's G and eps2, by the kernel its N
+    needs (jitted callers only; its meaning is the overload below): an :class:`AllPairs` context
+    (N <= 48) compiles only :func:`_potential_small`, a :class:`Rows` one the serial rows, and only
+    a :class:`Blocks` one the parallel rows."""
+    raise NotImplementedError("called from jitted code only")
+
+
+@overload(potential_of, inline="always")
+def _potential_of(force, pos, m, rows):
+    kind = kernel_class(force)
+    if kind is AllPairs:  # N <= 48 < BUFFERED_POTENTIAL_MIN_N: _potential_serial's first branch
+        return lambda force, pos, m, rows: -force.G * _potential_small(pos, m, force.eps2)
+    if kind is Rows:
+        return lambda force, pos, m, rows: _potential_serial(pos, m, force.G, force.eps2)
+    if kind is Blocks:
+        return lambda force, pos, m, rows: potential_energy(pos, m, force.G, force.eps2, rows)
+    return None
+
+
+@jit
+def potential_energy_at(force, pos, m, rows):
+    """:func:`potential_of`, for Python callers."""
+    return potential_of(force, pos, m, rows)
 
 
 @jit

@@ -33,13 +33,8 @@ look at it before every pair of rows and return early, so a force evaluation tha
 N = 10^6 ends within milliseconds of the request; the caller throws the step away
 (:mod:`orbitsim.stopping`). Only :func:`all_pairs_accelerations` (N <= 48: nanoseconds) does not look.
 
-How the stepping loops call these kernels: each scheme's ``advance`` unpacks the force context of
-:func:`make_force` once and calls :func:`all_pairs_accelerations` (N <= SMALL_N_MAX) or
-:func:`accelerations` from its own loop body, not through an inlined helper. Numba gives an
-inlined function its own copies of its array arguments; each copy costs an atomic increment and
-decrement of the array's reference count, and LLVM's pruning pass keeps them when a call that may
-return an error lies between the two. Through such a helper a 5-body step paid ten of these calls
-per evaluation, 4-13% of the step (benchmarks/README.md, "Reference counts in the loop").
+The force context that names which of these kernels a run calls is
+:mod:`orbitsim.physics.force_context`'s.
 """
 
 from __future__ import annotations
@@ -321,9 +316,3 @@ def accelerations(pos, m, G, eps2, acc, slabs, bounds):
         accelerations_serial(pos, m, G, eps2, acc, slabs, bounds)
     else:
         accelerations_parallel(pos, m, G, eps2, acc, slabs, bounds)
-
-
-def make_force(G: float, softening: float, n: int) -> tuple[float, float, np.ndarray, np.ndarray]:
-    """The force context ``(G, eps2, slabs, bounds)`` every step receives, for N bodies."""
-    slabs, bounds = force_scratch(n)
-    return (float(G), float(softening) ** 2, slabs, bounds)

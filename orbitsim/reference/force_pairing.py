@@ -1,6 +1,6 @@
 """A run's ``forces:`` on the REBOUND side of ``compare`` and ``convergence``: the same problem in both codes.
 
-orbitsim applies a force according to what it depends on (:mod:`orbitsim.forces.stepping`); the
+orbitsim applies a force according to what it depends on (:mod:`orbitsim.forces.hooks`); the
 REBOUND run gets the REBOUNDx effect of every force (:mod:`orbitsim.reference.rebx`) arranged the
 same way, so that a matched pair takes the same steps and agrees to round-off:
 

@@ -129,7 +129,7 @@ def test_the_check_leaves_out_exactly_what_the_handoff_names() -> None:
 
     def judged(handoff: Any) -> list[tuple[int, int]]:
         watch = build_watch(EventsConfig(), m, np.zeros(n), 1.0)
-        watch[3][0], watch[3][1] = pos, vel  # the step "started" where it ended: no pericentre passed
+        watch.prev[0], watch.prev[1] = pos, vel  # the step "started" where it ended: no pericentre passed
         after_step(watch, pos, vel, m, 1, 0.0, 0.1, handoff)
         events, _ = drain(watch, np.arange(n))
         return sorted((e.i, e.j) for e in events if e.kind == "unresolved")

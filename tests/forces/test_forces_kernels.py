@@ -36,6 +36,7 @@ from orbitsim.forces.table import (
     P_R_EQ,
     P_SPIN,
 )
+from orbitsim.forces.terms import terms_of
 from orbitsim.physics.gravity import all_pairs_accelerations
 
 rebound = pytest.importorskip("rebound")
@@ -144,8 +145,8 @@ def our_rows(sim, fid, c=C_AU, taus=None, oblate=0, J=(1e-2, -3e-3, 0.05), sourc
 
 def our_accelerations(pos, vel, m, G, arrays):
     acc = np.zeros_like(pos)
-    add_position_forces(pos, m, G, *arrays, acc)
-    add_velocity_forces(pos, vel, m, G, *arrays, acc, make_force_scratch(pos.shape[1]))
+    add_position_forces(pos, m, G, terms_of(*arrays), acc)
+    add_velocity_forces(pos, vel, m, G, terms_of(*arrays), acc, make_force_scratch(pos.shape[1]))
     return acc
 
 
@@ -196,7 +197,7 @@ def test_potentials_match_reboundx(fid):
     sim = sun_two_planets()
     rebx, force = add_rebx(sim, fid)
     pos, vel, m = state(sim)
-    ours = force_energy(pos, vel, m, sim.G, *our_rows(sim, fid))
+    ours = force_energy(pos, vel, m, sim.G, terms_of(*our_rows(sim, fid)))
     theirs = rebx.gr_potential_potential(force) if fid == GR_POTENTIAL else rebx.gravitational_harmonics_potential()
     assert ours < 0.0
     assert abs(ours - theirs) <= ULPS * abs(theirs)
@@ -211,7 +212,7 @@ def test_hamiltonians_match_reboundx(system, fid):
     sim = sun_two_planets() if system == "sun_two_planets" else sun_mercury()
     rebx, force = add_rebx(sim, fid, c=30.0)
     pos, vel, m = state(sim)
-    ours = sim.energy() + force_energy(pos, vel, m, sim.G, *our_rows(sim, fid, c=30.0))
+    ours = sim.energy() + force_energy(pos, vel, m, sim.G, terms_of(*our_rows(sim, fid, c=30.0)))
     theirs = rebx.gr_hamiltonian(force) if fid == GR else rebx.gr_full_hamiltonian(force)
     assert abs(ours - sim.energy()) > 1e-6 * abs(theirs)  # the correction is not negligible at c = 30
     assert abs(ours - theirs) <= 8 * ULPS * abs(theirs)
@@ -220,7 +221,7 @@ def test_hamiltonians_match_reboundx(system, fid):
 def test_migration_adds_no_energy():
     sim = sun_two_planets()
     pos, vel, m = state(sim)
-    assert force_energy(pos, vel, m, sim.G, *our_rows(sim, MIGRATION, taus=migration_taus(3))) == 0.0
+    assert force_energy(pos, vel, m, sim.G, terms_of(*our_rows(sim, MIGRATION, taus=migration_taus(3)))) == 0.0
 
 
 @pytest.mark.parametrize("fid", [GR, GR_FULL, MIGRATION])
@@ -236,7 +237,7 @@ def test_velocity_operator_matches_reboundx_integrate_force(fid):
     v0 = vel.copy()
     h = 0.05
     op.step(sim, h)
-    velocity_operator(pos, vel, m, sim.G, *our_rows(sim, fid, c=30.0, taus=taus), h, make_force_scratch(3))
+    velocity_operator(pos, vel, m, sim.G, terms_of(*our_rows(sim, fid, c=30.0, taus=taus)), h, make_force_scratch(3))
     pos_after, theirs, _ = state(sim)
     assert np.array_equal(pos_after, pos)
     assert np.max(np.abs(vel - v0)) > 1e-9  # the operator did something measurable
@@ -263,7 +264,7 @@ def test_velocity_operator_runs_one_operator_per_force_in_order():
     arrays = rows(3, (GR, 0, {P_C: 30.0}, None), (GR_POTENTIAL, 0, {P_C: 30.0}, None), (MIGRATION, -1, {}, taus))
     for op in ops:
         op.step(sim, 0.05)
-    velocity_operator(pos, vel, m, sim.G, *arrays, 0.05, make_force_scratch(3))
+    velocity_operator(pos, vel, m, sim.G, terms_of(*arrays), 0.05, make_force_scratch(3))
     assert_round_off(vel, state(sim)[1])
 
 
@@ -274,15 +275,16 @@ def test_each_entry_point_skips_the_other_kind():
                                                                         None))
     velocity_only = rows(3, (GR, 0, {P_C: 30.0}, None), (MIGRATION, -1, {}, migration_taus(3)))
     acc = np.zeros_like(pos)
-    add_velocity_forces(pos, vel, m, sim.G, *position_only, acc, make_force_scratch(3))
-    add_position_forces(pos, m, sim.G, *velocity_only, acc)
+    add_velocity_forces(pos, vel, m, sim.G, terms_of(*position_only), acc, make_force_scratch(3))
+    add_position_forces(pos, m, sim.G, terms_of(*velocity_only), acc)
     v = vel.copy()
-    velocity_operator(pos, v, m, sim.G, *position_only, 0.1, make_force_scratch(3))
+    velocity_operator(pos, v, m, sim.G, terms_of(*position_only), 0.1, make_force_scratch(3))
     assert np.all(acc == 0.0) and np.array_equal(v, vel)
 
 
 def potential_gradient(pos, m, G, arrays, step=1e-6):
     """-dU/dx_i (3, N) by central differences of force_energy."""
+    terms = terms_of(*arrays)
     grad = np.zeros_like(pos)
     vel = np.zeros_like(pos)
     for k in range(3):
@@ -290,7 +292,7 @@ def potential_gradient(pos, m, G, arrays, step=1e-6):
             up, down = pos.copy(), pos.copy()
             up[k, i] += step
             down[k, i] -= step
-            grad[k, i] = -(force_energy(up, vel, m, G, *arrays) - force_energy(down, vel, m, G, *arrays)) / (2 * step)
+            grad[k, i] = -(force_energy(up, vel, m, G, terms) - force_energy(down, vel, m, G, terms)) / (2 * step)
     return grad
 
 
@@ -306,7 +308,7 @@ def test_position_forces_are_minus_the_gradient_of_their_energy(label, cols, fid
     pos, _, m = state(sim)
     arrays = rows(3, (fid, source, cols, None))
     acc = np.zeros_like(pos)
-    add_position_forces(pos, m, sim.G, *arrays, acc)
+    add_position_forces(pos, m, sim.G, terms_of(*arrays), acc)
     force = acc * m
     assert np.max(np.abs(force - potential_gradient(pos, m, sim.G, arrays))) <= 1e-6 * np.max(np.abs(force))
 
@@ -327,12 +329,13 @@ def energy_rate(sim, arrays, dt=1e-3):
     pos, vel, m = state(sim)
     G = sim.G
     scratch = make_force_scratch(sim.N)
+    terms = terms_of(*arrays)
 
     def deriv(p, v):
         a = np.zeros_like(p)
         all_pairs_accelerations(p, m, G, 0.0, a)
-        add_position_forces(p, m, G, *arrays, a)
-        add_velocity_forces(p, v, m, G, *arrays, a, scratch)
+        add_position_forces(p, m, G, terms, a)
+        add_velocity_forces(p, v, m, G, terms, a, scratch)
         return v, a
 
     def rk4(h):
@@ -348,7 +351,7 @@ def energy_rate(sim, arrays, dt=1e-3):
         for i in range(sim.N):
             for j in range(i + 1, sim.N):
                 newton -= G * m[i] * m[j] / np.linalg.norm(p[:, i] - p[:, j])
-        return newton + force_energy(p, v, m, G, *arrays)
+        return newton + force_energy(p, v, m, G, terms)
 
     rate = (energy(*rk4(dt)) - energy(*rk4(-dt))) / (2 * dt)
     return rate, np.sum(m * np.sum(vel * deriv(pos, vel)[1], axis=0))

@@ -1,4 +1,4 @@
-"""The forced stepping loops (orbitsim.forces.stepping and the hooks of IAS15 and Wisdom-Holman):
+"""Runs with forces (every scheme's own loop through the hooks of orbitsim.forces.hooks):
 step for step against REBOUND + REBOUNDx, conservation, convergence order, reproducibility
 (threads, chunking, checkpoints), and runs without forces left alone."""
 
@@ -214,8 +214,12 @@ def test_ias15_velocity_dependent_force_predicts_node_velocities() -> None:
 
 
 def test_runs_without_forces_keep_their_plain_loop() -> None:
+    """Without forces a step gets the plain context (``forces`` None: every hook compiles to nothing);
+    with them the same scheme's ``run`` gets the context with the force records."""
     sim, _ = _run("verlet", None, 10)
-    assert sim._run is sim.scheme.run and sim.step_force is sim.force and len(sim.force) == 4
+    assert sim.step_force is sim.force and sim.force.forces is None
+    forced, _ = _run("verlet", _gr_potential(3), 10)
+    assert forced.step_force.forces is not None and type(forced.step_force) is type(forced.force)
 
 
 @pytest.mark.parametrize(("integrator", "kwargs", "words"), [

@@ -21,8 +21,6 @@ from orbitsim.integrators.ias15.core import (
     COUNT_ACCEPTED,
     COUNT_REJECTED,
     COUNT_STATUS,
-    W_CLOCK,
-    W_COUNTS,
 )
 from orbitsim.integrators.trace.ias15 import (
     STATUS_NON_FINITE,
@@ -117,7 +115,7 @@ def test_one_step_is_rebounds_fresh_ias15_bit_for_bit(make_sim, t: float, first_
     status, work = ours(pos, vel, m, dt, t, dt_last_done)
     rebound_full_ias15(sim, t, dt, dt_last_done)
     assert status == STATUS_OK
-    assert work[W_CLOCK][CLOCK_T] == sim.t
+    assert work.clock[CLOCK_T] == sim.t
     assert_bitwise(sim, pos, vel)
 
 
@@ -129,7 +127,7 @@ def test_dt_last_done_decides_how_a_rejected_first_try_is_retried() -> None:
         sim = pericenter()
         pos, vel, m = state_of(sim)
         _, work = ours(pos, vel, m, sim.dt, 0.0, dt_last_done)
-        assert work[W_COUNTS][COUNT_REJECTED] >= 1
+        assert work.counts[COUNT_REJECTED] >= 1
         results.append(pos)
     assert not np.array_equal(results[0], results[1])
     assert np.array_equal(results[1], results[2])
@@ -149,7 +147,7 @@ def test_consecutive_steps_each_with_a_fresh_ias15_are_bit_identical(make_sim) -
         rebound_full_ias15(sim, t, dt, dt_last_done)
         assert status == STATUS_OK
         assert_bitwise(sim, pos, vel)
-        steps.append(int(work[W_COUNTS][COUNT_ACCEPTED]))
+        steps.append(int(work.counts[COUNT_ACCEPTED]))
         t, dt_last_done = t + dt, dt  # TRACE's r->t += r->dt; r->dt_last_done = r->dt
     assert max(steps) > 5 * min(steps)  # the pericentre passage took many more IAS15 steps
 
@@ -222,8 +220,8 @@ def test_rebounds_trace_redoing_every_full_ias15_step_is_reproduced() -> None:
         start = pos.copy(), vel.copy()
         full_try(pos, vel, m, com, sim.dt, sim.t, sim.dt_last_done, work)
         pos[:], vel[:] = start
-        rejected_first_tries += work[W_COUNTS][COUNT_REJECTED] > 0
-        full_try(pos, vel, m, com, sim.dt, sim.t, work[W_CLOCK][CLOCK_DT_LAST_DONE], work)
+        rejected_first_tries += work.counts[COUNT_REJECTED] > 0
+        full_try(pos, vel, m, com, sim.dt, sim.t, work.clock[CLOCK_DT_LAST_DONE], work)
         dh_to_inertial(pos, vel, m, m.size, com)
         sim.steps(1)
         assert_bitwise(sim, pos, vel)
@@ -269,8 +267,8 @@ def test_a_used_work_gives_the_bits_of_a_new_one() -> None:
     _, fresh = ours(fresh_pos, fresh_vel, m, sim.dt, 5.0, 0.7)
     _, used = ours(pos, vel, m, sim.dt, 5.0, 0.7, used)
     assert np.array_equal(fresh_pos, pos) and np.array_equal(fresh_vel, vel)
-    assert np.array_equal(fresh[W_COUNTS], used[W_COUNTS])
-    assert used[W_CLOCK][CLOCK_DT_LAST_DONE] != 0.7  # what a redo of this step must pass on
+    assert np.array_equal(fresh.counts, used.counts)
+    assert used.clock[CLOCK_DT_LAST_DONE] != 0.7  # what a redo of this step must pass on
 
 
 def test_coincident_bodies_and_non_finite_input_end_with_a_status() -> None:
@@ -278,7 +276,7 @@ def test_coincident_bodies_and_non_finite_input_end_with_a_status() -> None:
     vel = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, 0.0]])
     m = np.array([1.0, 1e-3, 1e-3])
     status, work = ours(pos.copy(), vel.copy(), m, 0.5, 0.0, 0.0)
-    assert status == STATUS_NON_FINITE == work[W_COUNTS][COUNT_STATUS]
+    assert status == STATUS_NON_FINITE == work.counts[COUNT_STATUS]
     pos[1, 2] = np.nan
     pos[0, 1] = 0.5
     status, _ = ours(pos, vel, m, 0.5, 0.0, 0.0)
@@ -292,7 +290,7 @@ def test_a_head_on_collision_ends_with_step_underflow_short_of_the_target() -> N
     vel = np.zeros((3, 2))
     status, work = ours(pos, vel, np.array([1.0, 1.0]), 1.0, 0.0, 0.0)
     assert status == STATUS_STEP_UNDERFLOW
-    assert work[W_CLOCK][CLOCK_T] == pytest.approx(math.pi / 4.0, rel=1e-6)
+    assert work.clock[CLOCK_T] == pytest.approx(math.pi / 4.0, rel=1e-6)
     assert np.all(np.isfinite(pos)) and abs(pos[0, 0]) < 1e-6
 
 

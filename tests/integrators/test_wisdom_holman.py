@@ -17,7 +17,6 @@ from orbitsim.initial_conditions.ephemeris import J2000_JD, de421_states
 from orbitsim.integrators import wisdom_holman
 from orbitsim.integrators.registry import get_integrator
 from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_A1, CORRECTOR_STAGES, apply_corrector
-from orbitsim.integrators.wisdom_holman.operators import W_WEIGHTS
 from orbitsim.physics.coordinates import inertial_to_jacobi
 from orbitsim.reference.wh_pairing import configure_rebound_whfast
 from orbitsim.simulation import Simulation, simulate
@@ -248,8 +247,8 @@ def test_corrector_then_inverse_is_the_identity() -> None:
     m, x, v = de421_system(OUTER)
     sim = Simulation(m, x, v, "wh", 30.0, G=G_GAUSS, settings={"corrector": 17})
     start_pos, start_vel = np.empty_like(sim.pos), np.empty_like(sim.vel)
-    inertial_to_jacobi(sim.pos, sim.work[W_WEIGHTS], start_pos)
-    inertial_to_jacobi(sim.vel, sim.work[W_WEIGHTS], start_vel)
+    inertial_to_jacobi(sim.pos, sim.work.weights, start_pos)
+    inertial_to_jacobi(sim.vel, sim.work.weights, start_vel)
     jpos, jvel = start_pos.copy(), start_vel.copy()
     assert apply_corrector(jpos, jvel, sim.m, sim.force, 30.0, 1.0, sim.work) == (0, 0)
     assert np.max(np.abs(jpos - start_pos)) > 1e-12  # C moved the state ...

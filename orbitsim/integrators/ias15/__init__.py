@@ -27,14 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit, stop_requested
+from orbitsim._jit import jit, jit_inline, stop_requested
 from orbitsim.events.kernels import after_step, remember_start
+from orbitsim.forces.hooks import refresh_accelerations
 from orbitsim.integrators.base import (
     Integrator,
     IntegratorSpec,
     Setting,
     is_finite_state,
     record_sample,
+    sample_loop,
     setting_defaults,
 )
 from orbitsim.integrators.ias15.core import (
@@ -49,11 +51,8 @@ from orbitsim.integrators.ias15.core import (
     COUNT_UNCONVERGED,
     STATUS_NON_FINITE,
     STATUS_STEP_UNDERFLOW,
-    W_ADAPTIVE,
-    W_CLOCK,
-    W_COUNTS,
-    W_FIRST_DT,
-    W_T_END,
+    WORK_FIELDS,
+    IAS15Work,
     step_try,
 )
 
@@ -90,7 +89,7 @@ SETTINGS: dict[str, Setting] = {
 RUN_SETTINGS = ("first_dt", "t_end")
 #: Work entries a restored checkpoint does not override: the end of the run (``run --from``
 #: continues a finished run to a later t_end from its checkpoint).
-RUN_CONSTANTS = (W_T_END,)
+RUN_CONSTANTS = (WORK_FIELDS.index("t_end"),)
 
 
 def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -123,13 +122,13 @@ def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
     return out
 
 
-def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
-    """The ``work`` tuple of :data:`orbitsim.integrators.ias15.core.WORK_FIELDS` for masses ``m``."""
+def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> IAS15Work:
+    """The ``work`` (:class:`~orbitsim.integrators.ias15.core.IAS15Work`) for masses ``m``."""
     config = validate_settings(settings)
     n = int(np.asarray(m).shape[0])
     clock = np.zeros(4)
     counts = np.zeros(5, dtype=np.int64)
-    return (
+    return IAS15Work(
         *(np.zeros((7, 3 * n)) for _ in range(6)),
         *(np.zeros(3 * n) for _ in range(3)),
         np.zeros((3, n)),
@@ -148,20 +147,20 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
 def carry_over(old: tuple[Any, ...], new: tuple[Any, ...]) -> None:
     """After the bodies changed (a merge, a removal): keep the clock and the counters, and start
     the polynomial afresh, as REBOUND resets IAS15 when particles are removed."""
-    new[W_CLOCK][:] = old[W_CLOCK]
-    new[W_CLOCK][CLOCK_DT_LAST_DONE] = 0.0
-    new[W_COUNTS][:] = old[W_COUNTS]
+    new.clock[:] = old.clock
+    new.clock[CLOCK_DT_LAST_DONE] = 0.0
+    new.counts[:] = old.counts
 
 
 def clock_time(work: tuple[Any, ...], fallback: float) -> float:
     """The time of the state (the clock, once started; else ``fallback``)."""
-    clock = work[W_CLOCK]
+    clock = work.clock
     return float(clock[CLOCK_T]) if clock[CLOCK_STARTED] else fallback
 
 
 def counters(work: tuple[Any, ...]) -> dict[str, int | float]:
     """Accepted and rejected steps, force evaluations, unconverged steps, and the next trial step."""
-    counts, clock = work[W_COUNTS], work[W_CLOCK]
+    counts, clock = work.counts, work.clock
     return {"steps_accepted": int(counts[COUNT_ACCEPTED]), "steps_rejected": int(counts[COUNT_REJECTED]),
             "force_evaluations": int(counts[COUNT_FORCE_EVALS]),
             "steps_unconverged": int(counts[COUNT_UNCONVERGED]), "dt_next": float(clock[CLOCK_DT])}
@@ -169,7 +168,7 @@ def counters(work: tuple[Any, ...]) -> dict[str, int | float]:
 
 def failure_message(work: tuple[Any, ...]) -> str | None:
     """Why the run stopped, when IAS15 knows."""
-    status, clock = int(work[W_COUNTS][COUNT_STATUS]), work[W_CLOCK]
+    status, clock = int(work.counts[COUNT_STATUS]), work.clock
     if status == STATUS_STEP_UNDERFLOW:
         return (f"IAS15's step fell to {clock[CLOCK_DT]:.3g} at t = {clock[CLOCK_T]:.17g}, too small to move the "
                 "clock (a collision or a singular encounter); give the bodies radii and an events: collisions "
@@ -181,10 +180,10 @@ def failure_message(work: tuple[Any, ...]) -> str | None:
 
 @jit
 def _start_clock(work, t_now, dt_grid):
-    clock = work[W_CLOCK]
+    clock = work.clock
     if clock[CLOCK_STARTED] == 0.0:
         clock[CLOCK_T] = t_now
-        first = work[W_FIRST_DT]
+        first = work.first_dt
         clock[CLOCK_DT] = first if first != 0.0 else dt_grid
         clock[CLOCK_STARTED] = 1.0
 
@@ -193,7 +192,7 @@ def _start_clock(work, t_now, dt_grid):
 def _take_step(pos, vel, acc, m, force, work):
     """One accepted step (rejected tries retried, as REBOUND's ``reb_integrator_ias15_step``).
     Returns False, with the status in ``work``, when the clock cannot move or the state is lost."""
-    clock, counts = work[W_CLOCK], work[W_COUNTS]
+    clock, counts = work.clock, work.counts
     while True:
         dt = clock[CLOCK_DT]
         t = clock[CLOCK_T]
@@ -222,7 +221,7 @@ def _watched_step(pos, vel, acc, m, force, work, watch):
     remember_start(watch, pos, vel)
     if not _take_step(pos, vel, acc, m, force, work):
         return FAILED
-    clock, counts = work[W_CLOCK], work[W_COUNTS]
+    clock, counts = work.clock, work.counts
     dt_done = clock[CLOCK_DT_LAST_DONE]
     n = counts[COUNT_ACCEPTED]
     if after_step(watch, pos, vel, m, n, clock[CLOCK_T] - n * dt_done, dt_done, None):
@@ -236,7 +235,7 @@ def integrate_to(pos, vel, acc, m, force, work, t_target, watch):
     ``integrate`` call: the step that would overshoot is shortened to end on the target, and the
     last full step is restored afterwards). Returns :data:`REACHED`, :data:`FAILED` (the status is
     in ``work``) or, with an events ``watch``, :data:`ACT`."""
-    clock = work[W_CLOCK]
+    clock = work.clock
     sign = 1.0 if t_target >= clock[CLOCK_T] else -1.0
     clock[CLOCK_DT] = np.copysign(clock[CLOCK_DT], sign)
     last_full_dt = clock[CLOCK_DT]
@@ -276,7 +275,7 @@ def integrate_to(pos, vel, acc, m, force, work, t_target, watch):
 @jit
 def _grid_time(work, t0, dt, n):
     target = t0 + n * dt
-    t_end = work[W_T_END]
+    t_end = work.t_end
     if (dt > 0.0 and target > t_end) or (dt < 0.0 and target < t_end):
         return t_end
     return target
@@ -288,8 +287,8 @@ def advance_grid(pos, vel, acc, m, force, work, t0, dt, n_from, n_to, watch):
     constant step per grid point without adaptivity. Returns the grid points reached and how it
     ended (:data:`REACHED`, :data:`FAILED`, :data:`ACT`)."""
     _start_clock(work, _grid_time(work, t0, dt, n_from), dt)
-    adaptive = work[W_ADAPTIVE]
-    clock = work[W_CLOCK]
+    adaptive = work.adaptive
+    clock = work.clock
     for n in range(n_from + 1, n_to + 1):
         if adaptive:
             result = integrate_to(pos, vel, acc, m, force, work, _grid_time(work, t0, dt, n), watch)
@@ -307,44 +306,53 @@ def advance_grid(pos, vel, acc, m, force, work, t0, dt, n_from, n_to, watch):
 @jit
 def step(pos, vel, acc, m, force, dt, work):
     """Advance by one grid interval ``dt`` (adaptive steps inside it, or one constant step)."""
-    clock = work[W_CLOCK]
+    clock = work.clock
     t = clock[CLOCK_T] if clock[CLOCK_STARTED] else 0.0
     advance_grid(pos, vel, acc, m, force, work, t, dt, 0, 1, None)
 
 
+@jit_inline
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Grid points ``n_done`` to ``n_to`` (:func:`advance_grid` without events); False on a failure."""
+    n_done, result = advance_grid(pos, vel, acc, m, force, work, t0, dt, n_done, n_to, None)
+    return n_done, result == REACHED
+
+
+@jit_inline
+def sample_time(work, t0, n_done, dt):
+    """The time of a sample at grid point ``n_done``: the clock's (started there, if it is not yet)."""
+    _start_clock(work, _grid_time(work, t0, dt, n_done), dt)
+    return work.clock[CLOCK_T]
+
+
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """The grid loop (contract in :mod:`orbitsim.integrators.base`, with ``dt`` the output grid):
-    each sample is recorded at the exact time IAS15's clock reached."""
-    written, n_done, result = _grid_loop(state, force, dt, work, t0, n_done, targets, record, out, None)
-    return written, n_done, result != FAILED
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance` (``dt`` is the output
+    grid): each sample is recorded at the exact time IAS15's clock reached. A forced run's ``acc``
+    is evaluated afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, True)
+    return sample_loop(advance, sample_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run` with the events check after every step IAS15 takes (:mod:`orbitsim.events`);
-    a fourth result, True when the call stopped for the Python side, possibly mid-interval."""
-    written, n_done, result = _grid_loop(state, force, dt, work, t0, n_done, targets, record, out, watch)
-    return written, n_done, result != FAILED, result == ACT
-
-
-@jit
-def _grid_loop(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    a fourth result, True when the call stopped for the Python side, possibly mid-interval. The
+    steps between grid points are IAS15's own, so it watches them inside :func:`advance_grid`
+    rather than through the fixed-step watched loop."""
     pos, vel, acc, m = state
-    written = 0
-    times = out[0]
+    written = np.int64(0)  # not the literal 0: record_sample would compile twice (for Literal[int](0) and int64)
     for k in range(targets.shape[0]):
         if n_done < targets[k]:
             n_done, result = advance_grid(pos, vel, acc, m, force, work, t0, dt, n_done, targets[k], watch)
             if result != REACHED:
-                return written, n_done, result
+                return written, n_done, result != FAILED, result == ACT
         if record[k]:
-            _start_clock(work, _grid_time(work, t0, dt, n_done), dt)
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, FAILED
-            times[written] = work[W_CLOCK][CLOCK_T]
+            if not record_sample(written, n_done, sample_time(work, t0, n_done, dt), pos, vel, m, force, out):
+                return written, n_done, False, False
             written += 1
-    return written, n_done, REACHED
+    return written, n_done, True, False
 
 
 IAS15 = Integrator(

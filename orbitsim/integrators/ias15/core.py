@@ -29,26 +29,46 @@ all of it and a resumed run continues bit for bit.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
-from orbitsim.forces.hooks import add_forces, add_node_forces, force_arrays
+from orbitsim.forces.hooks import add_forces, add_node_forces
 from orbitsim.integrators.ias15.tables import RR, C, D, H
-from orbitsim.physics.gravity import SMALL_N_MAX, accelerations, all_pairs_accelerations
+from orbitsim.physics.force_context import newtonian_accelerations
 
 #: Largest change of consecutive steps: a step is rejected below 1/4 of the last, grows at most 4x.
 SAFETY_FACTOR = 0.25
 #: Predictor-corrector passes before a step is taken unconverged.
 MAX_ITERATIONS = 12
 
-#: The ``work`` tuple, in order: the polynomial coefficients b, their predictions e, the divided
-#: differences g, b's compensation terms, and the last accepted b and e (each (7, 3N), a (3, N)
-#: array flattened); the start-of-step state x0, v0, a0 (3N), the node accelerations (3, N), and
-#: the compensation of x and v (3N); the clock (CLOCK_*), the counters (COUNT_*), and the settings as constants.
-WORK_FIELDS = ("b", "e", "g", "csb", "br", "er", "x0", "v0", "a0", "at", "csx", "csv", "clock", "counts",
-               "epsilon", "min_dt", "adaptive", "t_end", "first_dt")
-W_B, W_E, W_G, W_CSB, W_BR, W_ER, W_X0, W_V0, W_A0, W_AT, W_CSX, W_CSV, W_CLOCK, W_COUNTS = range(14)
-W_EPSILON, W_MIN_DT, W_ADAPTIVE, W_T_END, W_FIRST_DT = range(14, 19)
+class IAS15Work(NamedTuple):
+    """The ``work`` of an IAS15 run (:func:`orbitsim.integrators.ias15.make_work`)."""
+
+    b: np.ndarray  #: (7, 3N) the polynomial coefficients (a (3, N) array flattened)
+    e: np.ndarray  #: (7, 3N) their predictions
+    g: np.ndarray  #: (7, 3N) the divided differences
+    csb: np.ndarray  #: (7, 3N) b's compensation terms
+    br: np.ndarray  #: (7, 3N) the last accepted b
+    er: np.ndarray  #: (7, 3N) the last accepted e
+    x0: np.ndarray  #: (3N,) the start-of-step positions
+    v0: np.ndarray  #: (3N,) velocities
+    a0: np.ndarray  #: (3N,) accelerations
+    at: np.ndarray  #: (3, N) the node accelerations
+    csx: np.ndarray  #: (3N,) the compensation of x
+    csv: np.ndarray  #: (3N,) and of v
+    clock: np.ndarray  #: (4,) CLOCK_* below
+    counts: np.ndarray  #: int64 (5,) COUNT_* below
+    epsilon: float  #: the settings, as constants
+    min_dt: float
+    adaptive: bool
+    t_end: float
+    first_dt: float
+
+
+#: The names of the ``work`` fields, in order (a checkpoint saves them in this order).
+WORK_FIELDS = IAS15Work._fields
 
 #: clock: the time of the state, the step to try next, the last step taken (0 before the first of
 #: an interval, as REBOUND resets it at every ``integrate``), and whether the clock is set.
@@ -306,13 +326,10 @@ def step_try(pos, vel, acc, m, force, work):
     new positions, and the clock holds the next step to try. Returns False when it is rejected:
     the state is as on entry, and the clock holds the smaller step to retry with.
     """
-    b, e, g, csb, br, er = work[W_B], work[W_E], work[W_G], work[W_CSB], work[W_BR], work[W_ER]
-    x0, v0, a0, at, csx, csv = work[W_X0], work[W_V0], work[W_A0], work[W_AT], work[W_CSX], work[W_CSV]
-    clock, counts = work[W_CLOCK], work[W_COUNTS]
-    epsilon, min_dt, adaptive = work[W_EPSILON], work[W_MIN_DT], work[W_ADAPTIVE]
-    G, eps2, slabs, bounds = force[0], force[1], force[2], force[3]
-    extra = force_arrays(force)  # None without forces: the force hooks then vanish at compile time
-    small = pos.shape[1] <= SMALL_N_MAX
+    b, e, g, csb, br, er = work.b, work.e, work.g, work.csb, work.br, work.er
+    x0, v0, a0, at, csx, csv = work.x0, work.v0, work.a0, work.at, work.csx, work.csv
+    clock, counts = work.clock, work.counts
+    epsilon, min_dt, adaptive = work.epsilon, work.min_dt, work.adaptive
     dt = clock[CLOCK_DT]
     n3 = pos.size
     # Flat views: the polynomial arithmetic runs over 3N contiguous components, which vectorises.
@@ -342,11 +359,8 @@ def step_try(pos, vel, acc, m, force, work):
         iterations += 1
         for n in range(1, 8):
             _predict_positions(pf, x0, v0, a0, b, csx, dt, H[n])
-            if small:
-                all_pairs_accelerations(pos, m, G, eps2, at)
-            else:
-                accelerations(pos, m, G, eps2, at, slabs, bounds)
-            add_node_forces(extra, G, pos, m, at, b, csv, v0, a0, dt, H[n])
+            newtonian_accelerations(force, pos, m, at)
+            add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, H[n])  # nothing without forces
             # pf is the corrector's scratch: nothing reads the node's positions after the force
             # evaluation, and every path out of the step rewrites them from x0.
             max_b6, max_a = _correct(n, atf, a0, g, b, csb, pf)
@@ -377,11 +391,8 @@ def step_try(pos, vel, acc, m, force, work):
     _copy7(er, e)
     _copy7(br, b)
     predict_next(clock[CLOCK_DT] / dt_done, e, b, e, b)
-    if small:
-        all_pairs_accelerations(pos, m, G, eps2, acc)
-    else:
-        accelerations(pos, m, G, eps2, acc, slabs, bounds)
-    add_forces(extra, G, pos, vel, m, acc)
+    newtonian_accelerations(force, pos, m, acc)
+    add_forces(force, pos, vel, m, acc)  # nothing without forces
     counts[COUNT_FORCE_EVALS] += 1
     counts[COUNT_ACCEPTED] += 1
     return True

@@ -12,7 +12,7 @@ IAS15, :mod:`.ias15`).
 
 State between steps: only ``pos``, ``vel`` and the time, which TRACE sums as ``t += dt`` (its BS
 sub-steps run on the absolute clock, so the clock's last bits matter). The clock lives in ``work``
-(:data:`W_CLOCK`: the time and the step count it belongs to), so a checkpoint restores it and a
+(``work.clock``: the time and the step count it belongs to), so a checkpoint restores it and a
 resumed run continues bit for bit.
 
 Massless bodies are test particles (REBOUND's ``testparticle_type = 0``) and must come after every
@@ -45,28 +45,29 @@ test_trace_engine.py, test_trace_ias15.py, test_trace_collisions.py):
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.bodies import HAND_MASSLESS_KEPLER, HAND_WHOLE_STEP
 from orbitsim.events.kernels import after_step, remember_start
-from orbitsim.integrators.base import Integrator, IntegratorSpec, Setting, record_sample, setting_defaults
+from orbitsim.integrators.base import (
+    Integrator,
+    IntegratorSpec,
+    Setting,
+    grid_time,
+    record_sample,
+    sample_loop,
+    setting_defaults,
+)
 from orbitsim.integrators.trace.collide import H_MERGED, K_HITS, K_LOST
 from orbitsim.integrators.trace.contacts import arm_collisions, post_contacts
 from orbitsim.integrators.trace.core import PERI_MODES, _trace_step, active_count, counts_of
 from orbitsim.integrators.trace.core import make_work as make_step_work
 from orbitsim.integrators.trace.layout import (
-    N_SLOTS,
     STATUS_IAS15_FAILED,
     STATUS_OK,
-    W_BOOK,
-    W_COLLIDE,
-    W_ENC,
-    W_HITS,
-    W_INTERACTS,
-    W_RADII,
 )
 from orbitsim.integrators.trace.switch import PARTIAL_BS, ST_CURRENT_C, ST_STATUS
 
@@ -100,9 +101,27 @@ SETTINGS: dict[str, Setting] = {
                          "fresh IAS15", tuple(PERI_MODES)),
 }
 
-#: Extra ``work`` entries after :func:`.core.make_work`'s: the clock (t, step of t) and the
-#: settings as numbers (r_crit_hill, peri_crit_eta) and codes (peri_mode, number of massive bodies).
-W_CLOCK, W_REAL, W_INT = N_SLOTS, N_SLOTS + 1, N_SLOTS + 2
+class TraceWork(NamedTuple):
+    """A TRACE run's ``work``: a step's arrays (:class:`~.layout.StepWork`, the same fields first),
+    then the clock (t, step of t) and the settings as numbers (r_crit_hill, peri_crit_eta) and
+    codes (peri_mode, number of massive bodies)."""
+
+    frames: np.ndarray
+    acc: np.ndarray
+    com: np.ndarray
+    rows: np.ndarray
+    bs_real: np.ndarray
+    bs_int: np.ndarray
+    prev_x: np.ndarray
+    interacts: np.ndarray
+    enc: np.ndarray
+    book: np.ndarray
+    radii: np.ndarray
+    hits: np.ndarray
+    collide: np.ndarray
+    clock: np.ndarray
+    real: np.ndarray
+    codes: np.ndarray
 
 
 def validate_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -135,7 +154,7 @@ def check_bodies(m: np.ndarray) -> None:
     active_count(np.ascontiguousarray(m, dtype=np.float64))
 
 
-def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
+def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> TraceWork:
     """The step's scratch (:func:`.core.make_work`), the clock and the settings.
 
     Raises ValueError for invalid settings, a central body without mass, or a massless body
@@ -147,13 +166,13 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
     clock = np.array([np.nan, -1.0])  # unset: the first call starts it at t0 + n dt
     real = np.array([config["r_crit_hill"], config["peri_crit_eta"]])
     codes = np.array([PERI_MODES[config["peri_mode"]], n_active], dtype=np.int64)
-    return (*make_step_work(masses.shape[0]), clock, real, codes)
+    return TraceWork(*make_step_work(masses.shape[0]), clock, real, codes)
 
 
 def carry_over(old: tuple[Any, ...], new: tuple[Any, ...]) -> None:
     """After the bodies changed (a merge, a removal): keep the clock and the counters."""
-    new[W_CLOCK][:] = old[W_CLOCK]
-    new[W_BOOK][:] = old[W_BOOK]
+    new.clock[:] = old.clock
+    new.book[:] = old.book
 
 
 def counters(work: tuple[Any, ...]) -> dict[str, int]:
@@ -163,7 +182,7 @@ def counters(work: tuple[Any, ...]) -> dict[str, int]:
 
 def failure_message(work: tuple[Any, ...]) -> str | None:
     """Why the run stopped, when TRACE knows."""
-    status = int(work[W_BOOK][ST_STATUS])
+    status = int(work.book[ST_STATUS])
     if status == STATUS_OK:
         return None
     if status == STATUS_IAS15_FAILED:
@@ -182,27 +201,29 @@ def take_merges(work: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray]:
     A body that merged away is still in the arrays, as a massless husk with radius 0, until the
     caller takes it out (:mod:`orbitsim.events.driver`).
     """
-    collide, hits = work[W_COLLIDE], work[W_HITS]
+    collide, hits = work.collide, work.hits
     rows = hits[: min(int(collide[K_HITS]), hits.shape[0])].copy()
     lost = int(collide[K_LOST])
     collide[K_HITS] = 0
     collide[K_LOST] = 0
     if lost:
         raise RuntimeError(f"trace: {lost} merges inside one step did not fit the contact table")
-    return rows[rows[:, H_MERGED] != 0.0], work[W_RADII].copy()
+    return rows[rows[:, H_MERGED] != 0.0], work.radii.copy()
 
 
 @jit
 def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
     """Steps from ``n_done`` to ``n_to`` on TRACE's summed clock; returns the steps reached."""
     _set_clock(work, t0, n_done, dt)  # first call, or a run that continues elsewhere: the clock of step n_done
-    clock = work[W_CLOCK]
-    real, codes = work[W_REAL], work[W_INT]
-    frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work[:N_SLOTS]
+    clock = work.clock
+    real, codes = work.real, work.codes
+    frames, acc, com, rows, bs_real, bs_int = work.frames, work.acc, work.com, work.rows, work.bs_real, work.bs_int
+    prev_x, interacts, enc, book, radii, hits, collide = (work.prev_x, work.interacts, work.enc, work.book, work.radii,
+                                                          work.hits, work.collide)
     while n_done < n_to:
         dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
-        _trace_step(pos, vel, m, force[0], dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
-                    force[1], frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
+        _trace_step(pos, vel, m, force.G, dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
+                    force.eps2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
                     collide)
         clock[0] += dt
         n_done += 1
@@ -214,7 +235,7 @@ def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
 
 @jit
 def _set_clock(work, t0, n_done, dt):
-    clock = work[W_CLOCK]
+    clock = work.clock
     if clock[1] != n_done:
         clock[0] = t0 + n_done * dt
         clock[1] = n_done
@@ -224,24 +245,24 @@ def _set_clock(work, t0, n_done, dt):
 def step(pos, vel, acc, m, force, dt, work):
     """One step from the clock's time (t = 0 on a fresh ``work``), ``pos``/``vel`` in and out
     (``acc`` is not used)."""
-    n = max(int(work[W_CLOCK][1]), 0)  # an unset clock (-1) is started at t = 0 by _advance
+    n = max(int(work.clock[1]), 0)  # an unset clock (-1) is started at t = 0 by _advance
     _advance(pos, vel, m, force, dt, work, 0.0, n, n + 1)
+
+
+@jit_inline
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to`` on TRACE's clock; False when a step failed (a
+    Bulirsch-Stoer sub-step produced nan, or a full_ias15 step could not finish)."""
+    n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, n_to)
+    return n_done, work.book[ST_STATUS] == STATUS_OK
 
 
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop (contract in :mod:`orbitsim.integrators.base`)."""
-    pos, vel, _acc, m = state
-    written = 0
-    for k in range(targets.shape[0]):
-        n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, targets[k])
-        if work[W_BOOK][ST_STATUS] != STATUS_OK:
-            return written, n_done, False
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`, from the clock of step
+    ``n_done`` (set when the run continues elsewhere)."""
+    _set_clock(work, t0, n_done, dt)
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit_inline
@@ -254,9 +275,9 @@ def _handoff(work):
     at any dt; TRACE never hands it over (its pericentre criterion skips test particles) and
     nothing else in the step depends on its own motion, so it is not judged either."""
     flags = HAND_MASSLESS_KEPLER
-    if work[W_BOOK][ST_CURRENT_C] != 0 and work[W_INT][0] != PARTIAL_BS:
+    if work.book[ST_CURRENT_C] != 0 and work.codes[0] != PARTIAL_BS:
         flags |= HAND_WHOLE_STEP
-    return work[W_INTERACTS], work[W_ENC][0], flags
+    return work.interacts, work.enc[0], flags
 
 
 def handoff(work: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray, int]:
@@ -280,22 +301,22 @@ def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch)
     and runs those checks on what is left (:mod:`orbitsim.events.driver`).
     """
     _set_clock(work, t0, n_done, dt)
-    arm_collisions(work[W_RADII], work[W_COLLIDE], watch)
+    arm_collisions(work.radii, work.collide, watch)
     pos, vel, acc, m = state
-    written = 0
+    written = np.int64(0)  # not the literal 0: record_sample would compile twice (for Literal[int](0) and int64)
     for k in range(targets.shape[0]):
         while n_done < targets[k]:
             remember_start(watch, pos, vel)
             step(pos, vel, acc, m, force, dt, work)
             n_done += 1
-            if work[W_BOOK][ST_STATUS] != STATUS_OK:
+            if work.book[ST_STATUS] != STATUS_OK:
                 return written, n_done, False, False
-            if post_contacts(watch, work[W_HITS], work[W_COLLIDE], n_done):
+            if post_contacts(watch, work.hits, work.collide, n_done):
                 return written, n_done, True, True
             if after_step(watch, pos, vel, m, n_done, t0, dt, _handoff(work)):
                 return written, n_done, True, True
         if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
+            if not record_sample(written, n_done, grid_time(work, t0, n_done, dt), pos, vel, m, force, out):
                 return written, n_done, False, False
             written += 1
     return written, n_done, True, False

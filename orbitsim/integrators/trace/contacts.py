@@ -49,7 +49,7 @@ __all__ = ["arm_collisions", "post_contacts"]
 @jit
 def arm_collisions(radii, collide, watch):
     """The watch's radii and collision codes into the step's ``radii`` and ``collide``."""
-    iconf, watch_radii = watch[0], watch[2]
+    iconf, watch_radii = watch.iconf, watch.radii
     for i in range(radii.shape[0]):
         radii[i] = watch_radii[i]
     collide[K_DETECT] = iconf[C_DETECT]
@@ -75,13 +75,13 @@ def post_contacts(watch, hits, collide, n_done):
             else:
                 p = find_pair(watch, i, j, PAIR_CONTACT)
                 if p >= 0:
-                    watch[5][p, P_LAST] = n_done
+                    watch.pair_i[p, P_LAST] = n_done
                     continue
                 open_pair(watch, i, j, PAIR_CONTACT, n_done)
             log_event(watch, EV_COLLISION, n_done, n_done, i, j, hits[r, H_TIME], hits[r, H_DIST], hits[r, H_SPEED],
                       hits[r, H_REACH])
-        watch[9][N_LOST] += collide[K_LOST]
+        watch.counts[N_LOST] += collide[K_LOST]
         collide[K_HITS] = 0
         collide[K_LOST] = 0
-    watch[9][STOP] = stop
+    watch.counts[STOP] = stop
     return stop != STOP_NONE

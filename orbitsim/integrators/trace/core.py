@@ -65,8 +65,7 @@ from orbitsim.integrators.trace.layout import (
     F_KEPLER_POS,
     STATUS_BS_NAN,
     STATUS_OK,
-    W_BOOK,
-    W_FRAMES,
+    StepWork,
 )
 from orbitsim.integrators.trace.operators import dh_to_inertial, inertial_to_dh, jump, restore_state, save_state
 from orbitsim.integrators.trace.substeps import encounter_bs, full_bs_step, full_ias15
@@ -82,7 +81,7 @@ from orbitsim.integrators.trace.switch import (
     pre_step_check,
 )
 
-__all__ = ["PERI_MODES", "STATUS_BS_NAN", "STATUS_OK", "W_BOOK", "active_count", "advance", "counts_of", "make_work",
+__all__ = ["PERI_MODES", "STATUS_BS_NAN", "STATUS_OK", "active_count", "advance", "counts_of", "make_work",
            "trace_run", "trace_step"]
 
 #: ``peri_mode`` by name (REBOUND's modes 0, 1, 2).
@@ -103,7 +102,7 @@ def make_work(n_bodies: int) -> tuple[np.ndarray, ...]:
     n = int(n_bodies)
     if n < 2:
         raise ValueError(f"TRACE needs a central body and at least one other body, got {n} bodies")
-    return (
+    return StepWork(
         np.zeros((4, 3, n)), np.zeros((3, n)), np.zeros(6),
         np.zeros((N_ROWS, 6 * n)), np.zeros(BS_REAL_LENGTH), np.zeros(BS_INT_LENGTH, dtype=np.int64),
         np.zeros(PREV_X_LENGTH),
@@ -114,7 +113,7 @@ def make_work(n_bodies: int) -> tuple[np.ndarray, ...]:
 
 def counts_of(work: tuple[np.ndarray, ...]) -> dict[str, int]:
     """The counters of ``work`` by name (:data:`COUNT_NAMES`)."""
-    book = work[W_BOOK]
+    book = work.book
     return {name: int(book[C_STEPS + k]) for k, name in enumerate(COUNT_NAMES)}
 
 
@@ -200,7 +199,7 @@ def trace_run(pos, vel, m, G, dt, t0, n_steps, r_crit_hill, peri_crit_eta, peri_
               dt_last_done, work):
     """``n_steps`` TRACE steps of dt from t0 (see :func:`trace_step`); returns the final time.
 
-    Stops early if a BS step produced nan (``work[W_BOOK][ST_STATUS]``).
+    Stops early if a BS step produced nan (``work.book[ST_STATUS]``).
     """
     frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
     softening2 = softening * softening
@@ -258,10 +257,10 @@ def advance(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, dt: float
     n_active = active_count(masses)
     if work is None:
         work = make_work(pos.shape[1])
-    elif work[W_FRAMES].shape[2] != pos.shape[1]:
-        raise ValueError(f"work was made for {work[W_FRAMES].shape[2]} bodies, not {pos.shape[1]}")
+    elif work.frames.shape[2] != pos.shape[1]:
+        raise ValueError(f"work was made for {work.frames.shape[2]} bodies, not {pos.shape[1]}")
     t = trace_run(pos, vel, masses, float(G), float(dt), float(t0), int(n_steps), float(r_crit_hill),
                   float(peri_crit_eta), PERI_MODES[peri_mode], n_active, float(softening), float(dt_last_done), work)
     counts: dict[str, Any] = counts_of(work)
-    counts["status"] = int(work[W_BOOK][ST_STATUS])
+    counts["status"] = int(work.book[ST_STATUS])
     return float(t), counts

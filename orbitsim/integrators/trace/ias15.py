@@ -53,22 +53,7 @@ from orbitsim.integrators.ias15.core import (
     STATUS_NON_FINITE,
     STATUS_OK,
     STATUS_STEP_UNDERFLOW,
-    W_A0,
-    W_AT,
-    W_B,
-    W_BR,
-    W_CLOCK,
-    W_COUNTS,
-    W_CSB,
-    W_CSV,
-    W_CSX,
-    W_E,
-    W_EPSILON,
-    W_ER,
-    W_G,
-    W_MIN_DT,
-    W_V0,
-    W_X0,
+    IAS15Work,
     _copy3,
     _copy7,
     _correct,
@@ -91,7 +76,7 @@ FULL_IAS15_SETTINGS = {"epsilon": FULL_IAS15_EPSILON, "min_dt": FULL_IAS15_MIN_D
 MIN_STEP_FRACTION = 1e-14
 
 
-def make_full_ias15_work(n_bodies: int) -> tuple:
+def make_full_ias15_work(n_bodies: int) -> IAS15Work:
     """The IAS15 ``work`` (:data:`~orbitsim.integrators.ias15.core.WORK_FIELDS`) with :data:`FULL_IAS15_SETTINGS`:
     what :func:`new_full_ias15_work` makes inside a step, from Python (with the check of N)."""
     n = int(n_bodies)
@@ -111,9 +96,10 @@ def new_full_ias15_work(n):
     while these allocations come once per pericentre step, beside a whole IAS15 integration.
     """
     m = 3 * n
-    return (np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)),
-            np.zeros((7, m)), np.zeros(m), np.zeros(m), np.zeros(m), np.zeros((3, n)), np.zeros(m), np.zeros(m),
-            np.zeros(4), np.zeros(5, dtype=np.int64), FULL_IAS15_EPSILON, FULL_IAS15_MIN_DT, True, np.inf, 0.0)
+    return IAS15Work(np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)), np.zeros((7, m)),
+                     np.zeros((7, m)), np.zeros(m), np.zeros(m), np.zeros(m), np.zeros((3, n)), np.zeros(m),
+                     np.zeros(m), np.zeros(4), np.zeros(5, dtype=np.int64), FULL_IAS15_EPSILON, FULL_IAS15_MIN_DT,
+                     True, np.inf, 0.0)
 
 
 @jit
@@ -150,13 +136,13 @@ def basic_accelerations(pos, m, G, softening2, n_active, acc):
 def _reset_ias15(work, t, dt, dt_last_done):
     """``work`` as a new IAS15 at t with trial step dt (what every try rewrites before reading,
     g, csb, x0, v0, a0 and at, is left)."""
-    work[W_B][:] = 0.0
-    work[W_E][:] = 0.0
-    work[W_BR][:] = 0.0
-    work[W_ER][:] = 0.0
-    work[W_CSX][:] = 0.0
-    work[W_CSV][:] = 0.0
-    clock, counts = work[W_CLOCK], work[W_COUNTS]
+    work.b[:] = 0.0
+    work.e[:] = 0.0
+    work.br[:] = 0.0
+    work.er[:] = 0.0
+    work.csx[:] = 0.0
+    work.csv[:] = 0.0
+    clock, counts = work.clock, work.counts
     clock[CLOCK_T] = t
     clock[CLOCK_DT] = dt
     clock[CLOCK_DT_LAST_DONE] = dt_last_done
@@ -167,9 +153,9 @@ def _reset_ias15(work, t, dt, dt_last_done):
 @jit
 def _converge(pos, m, G, softening2, n_active, work, dt):
     """The predictor-corrector passes of one try (``ias15.core.step_try``; integrator_ias15.c:386-606)."""
-    b, g, csb = work[W_B], work[W_G], work[W_CSB]
-    x0, v0, a0, at, csx = work[W_X0], work[W_V0], work[W_A0], work[W_AT], work[W_CSX]
-    counts = work[W_COUNTS]
+    b, g, csb = work.b, work.g, work.csb
+    x0, v0, a0, at, csx = work.x0, work.v0, work.a0, work.at, work.csx
+    counts = work.counts
     n3 = pos.size
     pf = pos.reshape(n3)
     atf = at.reshape(n3)
@@ -201,9 +187,9 @@ def _try_step(pos, vel, acc, m, G, softening2, n_active, work):
 
     True: taken; pos, vel, the clock and ``acc`` = a(pos) advance. False: rejected; the state is
     as on entry and the clock holds the smaller step to retry (integrator_ias15.c:707-811)."""
-    b, e, g, csb, br, er = work[W_B], work[W_E], work[W_G], work[W_CSB], work[W_BR], work[W_ER]
-    x0, v0, a0, csx, csv = work[W_X0], work[W_V0], work[W_A0], work[W_CSX], work[W_CSV]
-    clock, counts = work[W_CLOCK], work[W_COUNTS]
+    b, e, g, csb, br, er = work.b, work.e, work.g, work.csb, work.br, work.er
+    x0, v0, a0, csx, csv = work.x0, work.v0, work.a0, work.csx, work.csv
+    clock, counts = work.clock, work.counts
     n3 = pos.size
     pf = pos.reshape(n3)
     vf = vel.reshape(n3)
@@ -217,9 +203,9 @@ def _try_step(pos, vel, acc, m, G, softening2, n_active, work):
     _g_from_b(b, g)
     dt_done = clock[CLOCK_DT]
     _converge(pos, m, G, softening2, n_active, work, dt_done)
-    dt_new = _prs23_dt(a0, b, work[W_EPSILON], dt_done, SAFETY_FACTOR)
-    if abs(dt_new) < work[W_MIN_DT]:
-        dt_new = np.copysign(work[W_MIN_DT], dt_new)
+    dt_new = _prs23_dt(a0, b, work.epsilon, dt_done, SAFETY_FACTOR)
+    if abs(dt_new) < work.min_dt:
+        dt_new = np.copysign(work.min_dt, dt_new)
     if abs(dt_new / dt_done) < SAFETY_FACTOR:
         _copy3(pf, x0)
         _copy3(af, a0)
@@ -254,16 +240,16 @@ def full_ias15_step(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_do
     the square root. ``dt > 0`` (for dt <= 0 REBOUND's loop, and this one, take no step).
     ``dt_last_done``: REBOUND's ``r->dt_last_done`` now (module doc): 0 on the first step of an
     ``integrate`` call, else the previous TRACE step's dt; on a redo, what the first try left in
-    ``work[W_CLOCK][CLOCK_DT_LAST_DONE]``. ``work``: :func:`make_full_ias15_work`, reset here.
+    ``work.clock[CLOCK_DT_LAST_DONE]``. ``work``: :func:`make_full_ias15_work`, reset here.
 
     Returns ``STATUS_OK``, ``STATUS_STEP_UNDERFLOW`` (the step fell to zero, or below 1e-14 of
     dt short of t + dt, where REBOUND stops silently) or ``STATUS_NON_FINITE`` (pos, vel are then
-    non-finite; after an underflow they hold the time reached, ``work[W_CLOCK][CLOCK_T]``).
-    ``work[W_COUNTS]``: this call's accepted and rejected IAS15 steps, force evaluations,
+    non-finite; after an underflow they hold the time reached, ``work.clock[CLOCK_T]``).
+    ``work.counts``: this call's accepted and rejected IAS15 steps, force evaluations,
     unconverged steps and the status.
     """
     _reset_ias15(work, t, dt, dt_last_done)
-    clock, counts = work[W_CLOCK], work[W_COUNTS]
+    clock, counts = work.clock, work.counts
     t_needed = t + dt
     basic_accelerations(pos, m, G, softening2, n_active, acc)
     counts[COUNT_FORCE_EVALS] += 1

@@ -16,7 +16,7 @@ that merged away stays in the arrays as a massless husk, out of the ODE, until t
 from __future__ import annotations
 
 from orbitsim._jit import jit
-from orbitsim.integrators.ias15.core import CLOCK_DT_LAST_DONE, COUNT_ACCEPTED, W_CLOCK, W_COUNTS
+from orbitsim.integrators.ias15.core import CLOCK_DT_LAST_DONE, COUNT_ACCEPTED
 from orbitsim.integrators.trace.bs import (
     BS_ACCEPTED,
     BS_DT_PROPOSED,
@@ -214,8 +214,8 @@ def full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, c
     dh_to_inertial(pos, vel, m, n_active, com)
     ias15_work = new_full_ias15_work(pos.shape[1])
     status = full_ias15_step(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, ias15_work)
-    book[C_FULL_IAS15] += ias15_work[W_COUNTS][COUNT_ACCEPTED]
+    book[C_FULL_IAS15] += ias15_work.counts[COUNT_ACCEPTED]
     if status != IAS15_OK:
         book[ST_STATUS] = STATUS_IAS15_FAILED
     inertial_to_dh(pos, vel, m, n_active, com)
-    return ias15_work[W_CLOCK][CLOCK_DT_LAST_DONE]
+    return ias15_work.clock[CLOCK_DT_LAST_DONE]

@@ -19,8 +19,8 @@ only at those output times and when the map starts.
 
 The package: :mod:`.operators`, the map's operators (coordinate transforms, interaction kick,
 jump) and the ``work`` layout; :mod:`.correctors`, the symplectic correctors; :mod:`.settings`,
-the settings and their validation; this module, the map itself and the scheme's record
-(:data:`WISDOM_HOLMAN`).
+the settings and their validation; :mod:`.state`, what a checkpoint saves and what a Kepler
+failure left; this module, the map itself and the scheme's record (:data:`WISDOM_HOLMAN`).
 
 Internal state (what a checkpoint must save to continue bit for bit)
 --------------------------------------------------------------------
@@ -65,10 +65,10 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.forces.hooks import force_arrays
-from orbitsim.integrators.base import Integrator, IntegratorSpec, record_sample
+from orbitsim.forces.hooks import has_velocity_operator, velocity_operator
+from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sample_loop
 from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector
 from orbitsim.integrators.wisdom_holman.operators import (
     DEMOCRATIC_HELIOCENTRIC,
@@ -77,20 +77,10 @@ from orbitsim.integrators.wisdom_holman.operators import (
     F_STATUS,
     F_STEP,
     JACOBI,
-    W_CONFIG,
-    W_FLAGS,
-    W_IACC,
-    W_IPOS,
-    W_JPOS,
-    W_JVEL,
-    W_KSCRATCH,
-    W_KSTAGE,
-    W_LAST_POS,
-    W_LAST_VEL,
-    W_MU,
-    W_SPOS,
-    W_SVEL,
-    W_WEIGHTS,
+    PHASE_LAGGING,
+    PHASE_SYNCED,
+    PHASE_UNSET,
+    WHWork,
     com_drift,
     from_inertial,
     interaction_kick,
@@ -99,12 +89,17 @@ from orbitsim.integrators.wisdom_holman.operators import (
     to_inertial_vel,
 )
 from orbitsim.integrators.wisdom_holman.settings import COORDINATE_IDS, SETTINGS, validate_settings
+from orbitsim.integrators.wisdom_holman.state import (
+    failure_message,
+    internal_state,
+    raise_for_failure,
+    restore_internal_state,
+)
 from orbitsim.physics.coordinates import jacobi_weights
 from orbitsim.physics.kepler import (
     KEPLER_OK,
     KEPLER_SCRATCH_ROWS,
     KeplerConvergenceError,
-    describe_status,
     kepler_drift_bodies,
 )
 
@@ -141,19 +136,14 @@ SPEC = IntegratorSpec(
     module=__name__,
 )
 
-PHASE_UNSET = 0
-PHASE_SYNCED = 1
-PHASE_LAGGING = 2
-
-
 def check_bodies(m: np.ndarray) -> None:
     """The map drifts every body about body 0: raises ValueError unless ``m[0] > 0``."""
     if len(m) < 1 or not m[0] > 0.0:
         raise ValueError("wisdom_holman needs a central body: the first body's mass must be > 0")
 
 
-def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> tuple[Any, ...]:
-    """Build the ``work`` tuple (mapping state, scratch, constants) for masses ``m`` (N,).
+def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None) -> WHWork:
+    """Build the ``work`` (:class:`~.operators.WHWork`: mapping state, scratch, constants) for masses ``m`` (N,).
 
     Raises ValueError for invalid settings or a central body without mass (``m[0] <= 0``).
     """
@@ -170,24 +160,24 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
     flags = np.zeros(4, dtype=np.int64)
     flags[F_PHASE] = PHASE_UNSET
     state = tuple(np.zeros((3, n)) for _ in range(8))
-    return (
+    return WHWork(
         *state,
-        jacobi_weights(m),
-        np.ascontiguousarray(mu),
-        stage_a.copy(),
-        stage_b.copy(),
-        flags,
-        np.array([coordinates, config["corrector"]], dtype=np.int64),
-        np.zeros((KEPLER_SCRATCH_ROWS, n)),
-        np.zeros(n, dtype=np.int64),
+        weights=jacobi_weights(m),
+        mu=np.ascontiguousarray(mu),
+        stage_a=stage_a.copy(),
+        stage_b=stage_b.copy(),
+        flags=flags,
+        config=np.array([coordinates, config["corrector"]], dtype=np.int64),
+        kscratch=np.zeros((KEPLER_SCRATCH_ROWS, n)),
+        kstage=np.zeros(n, dtype=np.int64),
     )
 
 
 @jit
 def _state_changed(pos, vel, work):
     """True unless ``pos``, ``vel`` hold exactly the bits of the last synchronisation."""
-    last_pos = work[W_LAST_POS]
-    last_vel = work[W_LAST_VEL]
+    last_pos = work.last_pos
+    last_vel = work.last_vel
     for c in range(3):
         for i in range(pos.shape[1]):
             if pos[c, i] != last_pos[c, i] or vel[c, i] != last_vel[c, i]:
@@ -195,21 +185,31 @@ def _state_changed(pos, vel, work):
     return False
 
 
+@jit_inline
+def _copy_state(pos, vel, to_pos, to_vel):
+    """to_pos, to_vel = pos, vel (3, N), by explicit loops: a slice assignment costs more than a
+    planetary system's copy (with velocity-dependent forces the map restarts every step)."""
+    for c in range(3):
+        for i in range(pos.shape[1]):
+            to_pos[c, i] = pos[c, i]
+            to_vel[c, i] = vel[c, i]
+
+
 @jit
 def _remember(pos, vel, work):
-    work[W_LAST_POS][:, :] = pos
-    work[W_LAST_VEL][:, :] = vel
+    _copy_state(pos, vel, work.last_pos, work.last_vel)
 
 
 @jit
 def _start(pos, vel, m, force, dt, work):
     """Mapping state from the inertial ``pos``, ``vel``, then the corrector C; returns (status, body)."""
-    jpos = work[W_JPOS]
-    jvel = work[W_JVEL]
-    from_inertial(pos, vel, m, work[W_WEIGHTS], work[W_CONFIG][0], jpos, jvel)
+    jpos = work.jpos
+    jvel = work.jvel
+    from_inertial(pos, vel, m, work.weights, work.config[0], jpos, jvel)
     _remember(pos, vel, work)
-    flags = work[W_FLAGS]
-    flags[:] = 0
+    flags = work.flags
+    for k in range(flags.shape[0]):
+        flags[k] = 0
     flags[F_PHASE] = PHASE_SYNCED
     return apply_corrector(jpos, jvel, m, force, dt, 1.0, work)
 
@@ -217,23 +217,22 @@ def _start(pos, vel, m, force, dt, work):
 @jit
 def _synchronize(pos, vel, m, force, dt, work):
     """Inertial state at the current step into ``pos``, ``vel``, from a copy of the mapping state."""
-    if work[W_FLAGS][F_PHASE] != PHASE_LAGGING:
+    if work.flags[F_PHASE] != PHASE_LAGGING:
         return KEPLER_OK, 0  # no step since the start: pos, vel still hold the start state
-    spos = work[W_SPOS]
-    svel = work[W_SVEL]
-    spos[:, :] = work[W_JPOS]
-    svel[:, :] = work[W_JVEL]
+    spos = work.spos
+    svel = work.svel
+    _copy_state(work.jpos, work.jvel, spos, svel)
     half = 0.5 * dt
-    status, body = kepler_drift_bodies(spos, svel, work[W_MU], half, 1, work[W_KSCRATCH], work[W_KSTAGE])
+    status, body = kepler_drift_bodies(spos, svel, work.mu, half, 1, work.kscratch, work.kstage)
     if status != KEPLER_OK:
         return status, body
     com_drift(spos, svel, half)
     status, body = apply_corrector(spos, svel, m, force, dt, -1.0, work)
     if status != KEPLER_OK:
         return status, body
-    coordinates = work[W_CONFIG][0]
-    to_inertial_pos(spos, m, work[W_WEIGHTS], coordinates, pos)
-    to_inertial_vel(svel, m, work[W_WEIGHTS], coordinates, vel)
+    coordinates = work.config[0]
+    to_inertial_pos(spos, m, work.weights, coordinates, pos)
+    to_inertial_vel(svel, m, work.weights, coordinates, vel)
     _remember(pos, vel, work)
     return KEPLER_OK, 0
 
@@ -241,7 +240,7 @@ def _synchronize(pos, vel, m, force, dt, work):
 @jit
 def _fail(pos, vel, work, status, body, step_index):
     """Record a Kepler failure and poison the state so the divergence path reports it."""
-    flags = work[W_FLAGS]
+    flags = work.flags
     flags[F_STATUS] = status
     flags[F_BODY] = body
     flags[F_STEP] = step_index
@@ -253,7 +252,7 @@ def _fail(pos, vel, work, status, body, step_index):
 @jit
 def _ensure_started(pos, vel, m, force, dt, work, n_done):
     """Continue from the internal state, or (re)start from ``pos``/``vel``; False on failure."""
-    if work[W_FLAGS][F_PHASE] != PHASE_UNSET and not _state_changed(pos, vel, work):
+    if work.flags[F_PHASE] != PHASE_UNSET and not _state_changed(pos, vel, work):
         return True
     status, body = _start(pos, vel, m, force, dt, work)
     if status != KEPLER_OK:
@@ -265,13 +264,15 @@ def _ensure_started(pos, vel, m, force, dt, work, n_done):
 @jit
 def step(pos, vel, acc, m, force, dt, work):
     """One step, ``pos``/``vel`` in and out (``acc`` is not used); same bits as :func:`run`."""
-    if not _ensure_started(pos, vel, m, force, dt, work, -1):
+    # int64 values, not literals: a literal argument compiles a callee once more for its own type.
+    no_step, zero, one = np.int64(-1), np.int64(0), np.int64(1)
+    if not _ensure_started(pos, vel, m, force, dt, work, no_step):
         return
-    _, status, body = _advance_to(1, 0, m, force, dt, work)
+    _, status, body = _advance_to(one, zero, m, force, dt, work)
     if status == KEPLER_OK:
         status, body = _synchronize(pos, vel, m, force, dt, work)
     if status != KEPLER_OK:
-        _fail(pos, vel, work, status, body, -1)
+        _fail(pos, vel, work, status, body, no_step)
 
 
 @jit
@@ -283,16 +284,15 @@ def _advance_to(target, n_done, m, force, dt, work):
     are taken out of ``work`` once per call and the step is written out here, not in a helper
     called per step, since every array-taking call costs a reference-count round trip.
     """
-    jpos, jvel = work[W_JPOS], work[W_JVEL]
-    flags = work[W_FLAGS]
-    coordinates = work[W_CONFIG][0]
+    jpos, jvel = work.jpos, work.jvel
+    flags = work.flags
+    coordinates = work.config[0]
     heliocentric = coordinates == DEMOCRATIC_HELIOCENTRIC
-    weights, mu = work[W_WEIGHTS], work[W_MU]
-    ipos, acc = work[W_IPOS], work[W_IACC]
-    ks, kstage = work[W_KSCRATCH], work[W_KSTAGE]
-    G = force[0]
-    eps2 = force[1]
-    forces = force_arrays(force)  # None without forces (orbitsim.forces.hooks)
+    weights, mu = work.weights, work.mu
+    ipos, acc = work.ipos, work.iacc
+    ks, kstage = work.kscratch, work.kstage
+    G = force.G
+    eps2 = force.eps2
     half = 0.5 * dt
     while n_done < target:
         h = half if flags[F_PHASE] == PHASE_SYNCED else dt
@@ -303,7 +303,7 @@ def _advance_to(target, n_done, m, force, dt, work):
             jpos[c, 0] += h * jvel[c, 0]  # the centre of mass drifts
         if heliocentric:
             jump(jpos, jvel, m, half)
-        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc, forces)
+        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc, force)
         if heliocentric:
             jump(jpos, jvel, m, half)
         flags[F_PHASE] = PHASE_LAGGING
@@ -311,93 +311,54 @@ def _advance_to(target, n_done, m, force, dt, work):
     return n_done, KEPLER_OK, 0
 
 
+@jit_inline
+def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """Steps from ``n_done`` to ``n_to``, then ``pos``/``vel`` synchronised (on a copy of the
+    mapping state, which goes on unsynchronised); False on a Kepler failure, recorded in ``work``
+    with the state poisoned (:func:`_fail`).
+
+    With velocity-dependent forces each step is ``V(dt/2) S(dt) V(dt/2)``, S a step synchronised
+    at its end: the operators change the inertial velocities, so the map restarts from the
+    inertial state after each (``_ensure_started`` sees the change), as REBOUND's WHFast does in
+    safe mode when an operator modified the particles (REBOUNDx's arrangement for WHFast).
+    """
+    if has_velocity_operator(force):
+        half = 0.5 * dt
+        while n_done < n_to:
+            velocity_operator(force, pos, vel, m, half)
+            step(pos, vel, acc, m, force, dt, work)
+            velocity_operator(force, pos, vel, m, half)
+            n_done += 1
+        return n_done, True
+    if not _ensure_started(pos, vel, m, force, dt, work, n_done):
+        return n_done, False
+    n_done, status, body = _advance_to(n_to, n_done, m, force, dt, work)
+    if status != KEPLER_OK:
+        _fail(pos, vel, work, status, body, n_done + 1)
+        return n_done, False
+    status, body = _synchronize(pos, vel, m, force, dt, work)
+    if status != KEPLER_OK:
+        _fail(pos, vel, work, status, body, n_done)
+        return n_done, False
+    return n_done, True
+
+
 @jit
 def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """Fixed-dt loop (contract in :mod:`orbitsim.integrators.base`); synchronises only at outputs."""
-    pos, vel, _acc, m = state
-    if not _ensure_started(pos, vel, m, force, dt, work, n_done):
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`: synchronises only at
+    samples and at the end of the call. The map continues from its internal state, or restarts
+    from ``pos``/``vel`` if they changed, at the start of every call (with velocity-dependent
+    forces, at every step)."""
+    pos, vel, _, m = state
+    if not has_velocity_operator(force) and not _ensure_started(pos, vel, m, force, dt, work, n_done):
         return 0, n_done, False
-    synced = n_done
-    written = 0
-    last = targets.shape[0] - 1
-    for k in range(targets.shape[0]):
-        n_done, status, body = _advance_to(targets[k], n_done, m, force, dt, work)
-        if status != KEPLER_OK:
-            _fail(pos, vel, work, status, body, n_done + 1)
-            return written, n_done, False
-        if (record[k] or k == last) and synced != n_done:
-            status, body = _synchronize(pos, vel, m, force, dt, work)
-            if status != KEPLER_OK:
-                _fail(pos, vel, work, status, body, n_done)
-                return written, n_done, False
-            synced = n_done
-        if record[k]:
-            if not record_sample(written, n_done, t0, dt, pos, vel, m, force, out):
-                return written, n_done, False
-            written += 1
-    return written, n_done, True
+    return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
 def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`)."""
-    return watched_run(step, state, force, dt, work, t0, n_done, targets, record, out, watch)
-
-
-_STATE_SLOTS = {
-    "mapping_positions": W_JPOS,
-    "mapping_velocities": W_JVEL,
-    "synced_positions": W_LAST_POS,
-    "synced_velocities": W_LAST_VEL,
-}
-
-
-def internal_state(work: tuple[Any, ...]) -> dict[str, np.ndarray]:
-    """Copies of the arrays a checkpoint must save to continue bit for bit (see module docstring)."""
-    arrays = {name: work[slot].copy() for name, slot in _STATE_SLOTS.items()}
-    arrays["phase"] = np.array([work[W_FLAGS][F_PHASE]], dtype=np.int64)
-    return arrays
-
-
-def restore_internal_state(work: tuple[Any, ...], arrays: Mapping[str, np.ndarray]) -> None:
-    """Put arrays saved by :func:`internal_state` back into ``work`` (in place).
-
-    The inertial ``pos``/``vel`` of the simulation must be restored to ``synced_positions`` and
-    ``synced_velocities`` as well, or the next call restarts the map from them.
-    """
-    missing = sorted((set(_STATE_SLOTS) | {"phase"}) - set(arrays))
-    if missing:
-        raise ValueError(f"wisdom_holman internal state lacks {', '.join(missing)}")
-    for name, slot in _STATE_SLOTS.items():
-        value = np.asarray(arrays[name], dtype=np.float64)
-        if value.shape != work[slot].shape:
-            raise ValueError(
-                f"wisdom_holman internal state {name!r} has shape {value.shape}, expected {work[slot].shape}"
-            )
-        work[slot][...] = value
-    phase = int(np.asarray(arrays["phase"]).reshape(-1)[0])
-    if phase not in (PHASE_UNSET, PHASE_SYNCED, PHASE_LAGGING):
-        raise ValueError(f"wisdom_holman internal state 'phase' must be 0, 1 or 2, got {phase}")
-    flags = work[W_FLAGS]
-    flags[:] = 0
-    flags[F_PHASE] = phase
-
-
-def failure_message(work: tuple[Any, ...]) -> str | None:
-    """One line describing a Kepler failure recorded in ``work``, or None if there was none."""
-    flags = work[W_FLAGS]
-    status = int(flags[F_STATUS])
-    if status == KEPLER_OK:
-        return None
-    step_index = int(flags[F_STEP])
-    return describe_status(status, body=int(flags[F_BODY]), step=step_index if step_index >= 0 else None)
-
-
-def raise_for_failure(work: tuple[Any, ...]) -> None:
-    """Raise :class:`KeplerConvergenceError` if a Kepler failure is recorded in ``work``."""
-    message = failure_message(work)
-    if message is not None:
-        raise KeplerConvergenceError(message)
+    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+    return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
 WISDOM_HOLMAN = Integrator(

@@ -35,15 +35,6 @@ import numpy as np
 from orbitsim._jit import jit
 from orbitsim.integrators.wisdom_holman.operators import (
     JACOBI,
-    W_CONFIG,
-    W_IACC,
-    W_IPOS,
-    W_KSCRATCH,
-    W_KSTAGE,
-    W_MU,
-    W_STAGE_A,
-    W_STAGE_B,
-    W_WEIGHTS,
     interaction_kick,
 )
 from orbitsim.integrators.wisdom_holman.settings import CORRECTOR_ORDERS
@@ -114,11 +105,11 @@ def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, ks
     status, body = kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    interaction_kick(jpos, jvel, m, G, eps2, -b, JACOBI, weights, mu, ipos, acc)
+    interaction_kick(jpos, jvel, m, G, eps2, -b, JACOBI, weights, mu, ipos, acc, None)
     status, body = kepler_drift_bodies(jpos, jvel, mu, -2.0 * a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    interaction_kick(jpos, jvel, m, G, eps2, b, JACOBI, weights, mu, ipos, acc)
+    interaction_kick(jpos, jvel, m, G, eps2, b, JACOBI, weights, mu, ipos, acc, None)
     return kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
 
 
@@ -129,20 +120,20 @@ def apply_corrector(jpos, jvel, m, force, dt, inv, work):
     The stage tables in ``work`` are empty when no corrector is selected. Correctors need Jacobi
     coordinates (enforced by the settings validation; checked here too).
     """
-    stage_a = work[W_STAGE_A]
-    stage_b = work[W_STAGE_B]
+    stage_a = work.stage_a
+    stage_b = work.stage_b
     if stage_a.shape[0] == 0:
         return KEPLER_OK, 0
-    if work[W_CONFIG][0] != JACOBI:
+    if work.config[0] != JACOBI:
         raise ValueError("wisdom_holman: symplectic correctors need Jacobi coordinates")
-    G = force[0]
-    eps2 = force[1]
-    weights = work[W_WEIGHTS]
-    mu = work[W_MU]
-    ipos = work[W_IPOS]
-    acc = work[W_IACC]
-    ks = work[W_KSCRATCH]
-    kstage = work[W_KSTAGE]
+    G = force.G
+    eps2 = force.eps2
+    weights = work.weights
+    mu = work.mu
+    ipos = work.ipos
+    acc = work.iacc
+    ks = work.kscratch
+    kstage = work.kstage
     for s in range(stage_a.shape[0]):
         a = stage_a[s] * dt
         b = inv * stage_b[s] * dt

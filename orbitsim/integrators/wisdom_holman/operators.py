@@ -23,8 +23,8 @@ Hamiltonian splitting (Wisdom & Holman 1991; Rein & Tamayo 2015, section 2):
 Softening, when the force context has one, is applied to the pair terms only (the Kepler parts
 are unsoftened), as REBOUND does.
 
-The ``work`` tuple built by :func:`orbitsim.integrators.wisdom_holman.make_work` holds the
-mapping state and the scratch; its slots are named by the ``W_*`` constants below.
+The ``work`` built by :func:`orbitsim.integrators.wisdom_holman.make_work` holds the
+mapping state and the scratch, a :class:`WHWork` whose fields are named below.
 
 Speed note: every jitted call that takes arrays, and every array taken out of a tuple, costs
 Numba a reference-count round trip (two calls into its runtime with atomic updates, ~15 ns
@@ -37,9 +37,12 @@ is one Kepler call, one kick call and one pair-sum call. That took the N = 5 ste
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
+
+import numpy as np
 
 from orbitsim._jit import jit, stop_requested
-from orbitsim.forces.hooks import add_interaction_forces
+from orbitsim.forces.hooks import add_kick_forces
 from orbitsim.integrators.wisdom_holman.settings import COORDINATE_IDS
 from orbitsim.physics.coordinates import (
     democratic_heliocentric_to_inertial_pos,
@@ -53,25 +56,32 @@ from orbitsim.physics.coordinates import (
 JACOBI = COORDINATE_IDS["jacobi"]
 DEMOCRATIC_HELIOCENTRIC = COORDINATE_IDS["democratic_heliocentric"]
 
-#: Slots of the ``work`` tuple.
-W_JPOS = 0  # (3, N) mapping positions (Jacobi or democratic heliocentric); column 0 = centre of mass
-W_JVEL = 1  # (3, N) mapping velocities
-W_SPOS = 2  # (3, N) copy of the mapping state, advanced to an output time by the synchronisation
-W_SVEL = 3
-W_IPOS = 4  # (3, N) inertial positions at which the kick is evaluated
-W_IACC = 5  # (3, N) accelerations of the interaction Hamiltonian
-W_LAST_POS = 6  # (3, N) inertial state written by the last synchronisation
-W_LAST_VEL = 7
-W_WEIGHTS = 8  # (N,) Jacobi weights m_i / M_i
-W_MU = 9  # (N,) Kepler parameter of each body
-W_STAGE_A = 10  # (S,) corrector stages: Kepler coefficients, in units of dt
-W_STAGE_B = 11  # (S,) corrector stages: kick coefficients, in units of dt
-W_FLAGS = 12  # int64 (4,): phase, failure status, failing body, failing step
-W_CONFIG = 13  # int64 (2,): coordinates id, corrector order
-W_KSCRATCH = 14  # (KEPLER_SCRATCH_ROWS, N) per-body scratch of the Kepler solver
-W_KSTAGE = 15  # int64 (N,) per-body stage of the Kepler solver
+class WHWork(NamedTuple):
+    """The ``work`` of a Wisdom-Holman run (:func:`orbitsim.integrators.wisdom_holman.make_work`)."""
 
-#: Slots of ``work[W_FLAGS]``.
+    jpos: np.ndarray  #: (3, N) mapping positions (Jacobi or democratic heliocentric); column 0 = centre of mass
+    jvel: np.ndarray  #: (3, N) mapping velocities
+    spos: np.ndarray  #: (3, N) copy of the mapping state, advanced to an output time by the synchronisation
+    svel: np.ndarray  #: (3, N) its velocities
+    ipos: np.ndarray  #: (3, N) inertial positions at which the kick is evaluated
+    iacc: np.ndarray  #: (3, N) accelerations of the interaction Hamiltonian
+    last_pos: np.ndarray  #: (3, N) inertial state written by the last synchronisation
+    last_vel: np.ndarray  #: (3, N) its velocities
+    weights: np.ndarray  #: (N,) Jacobi weights m_i / M_i
+    mu: np.ndarray  #: (N,) Kepler parameter of each body
+    stage_a: np.ndarray  #: (S,) corrector stages: Kepler coefficients, in units of dt
+    stage_b: np.ndarray  #: (S,) corrector stages: kick coefficients, in units of dt
+    flags: np.ndarray  #: int64 (4,): phase, failure status, failing body, failing step (F_* below)
+    config: np.ndarray  #: int64 (2,): coordinates id, corrector order
+    kscratch: np.ndarray  #: (KEPLER_SCRATCH_ROWS, N) per-body scratch of the Kepler solver
+    kstage: np.ndarray  #: int64 (N,) per-body stage of the Kepler solver
+
+
+#: Phases of ``work.flags[F_PHASE]``: not started (the next call derives the mapping state from
+#: ``pos``/``vel``), started but no step taken yet (the next drift is dt/2), lagging (the next is dt).
+PHASE_UNSET, PHASE_SYNCED, PHASE_LAGGING = 0, 1, 2
+
+#: Slots of ``work.flags``.
 F_PHASE = 0
 F_STATUS = 1
 F_BODY = 2
@@ -173,12 +183,13 @@ def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
 
 
 @jit
-def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, acc, forces=None):
+def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, acc, force):
     """The kick ``I(h)`` of the mapping state ``jpos``, ``jvel``; ``ipos``, ``acc`` are scratch.
 
-    ``forces``: a forced run's force arrays (:mod:`orbitsim.forces.hooks`), whose position-only
-    forces are added to the inertial accelerations before their Jacobi transform, as REBOUND's
-    WHFast adds ``additional_forces``; None (the default) compiles to the kick without them.
+    ``force``: the run's force context, whose position-only forces are added to the inertial
+    accelerations before their Jacobi transform, as REBOUND's WHFast adds ``additional_forces``
+    (:func:`orbitsim.forces.hooks.add_kick_forces`); a context without forces, or None (the
+    correctors' kicks), compiles to the kick without them.
 
     Jacobi: the inertial positions (:func:`~orbitsim.physics.coordinates.jacobi_to_inertial`),
     the pair accelerations, their Jacobi transform
@@ -200,7 +211,7 @@ def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, 
     else:
         raise ValueError("wisdom_holman: unknown coordinates id")
     interaction_accelerations(ipos, m, G, eps2, coordinates, acc)
-    add_interaction_forces(forces, G, ipos, m, acc)
+    add_kick_forces(force, ipos, m, acc)
     if coordinates == DEMOCRATIC_HELIOCENTRIC:
         for c in range(3):
             for i in range(1, n):
