@@ -26,12 +26,19 @@ import functools
 import math
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
+import numba
 import numpy as np
 
+from orbitsim._jit import set_num_threads
+from orbitsim.forces.hooks import forced_context
 from orbitsim.integrators.base import Integrator, IntegratorSpec
+from orbitsim.integrators.registry import get_integrator
+from orbitsim.physics.diagnostics import kinetic_energy, potential_energy_at, potential_rows_scratch
+from orbitsim.physics.force_context import accelerations_at, make_force
+from orbitsim.physics.gravity import PARALLEL_MIN_N
 from orbitsim.results import SampleBuffers, SampleChunk, SimulationResult, collect_result, relative_energy_error
 from orbitsim.sampling import (
     TARGET_CALL_SECONDS,
@@ -138,12 +145,7 @@ class Simulation:
     forces: Any = None
 
     def __post_init__(self) -> None:
-        import numba
-
-        from orbitsim._jit import set_num_threads
-        from orbitsim.cores import choose_threads
-        from orbitsim.integrators.registry import get_integrator
-        from orbitsim.physics.gravity import PARALLEL_MIN_N
+        from orbitsim.cores import choose_threads  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
         if not (math.isfinite(self.dt) and self.dt != 0.0):
             raise SimulationError(f"dt must be a finite non-zero number, got {self.dt}")
@@ -165,13 +167,13 @@ class Simulation:
         self.diverged = False
         self.watcher = None
         if self.events is not None:
-            from orbitsim.events.driver import Watcher
+            from orbitsim.events.driver import Watcher  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
             self.watcher = Watcher(self, self.events, self.radii)
 
     def _check_forces(self) -> None:
         """Refuse, in one line, what a scheme cannot do with these forces."""
-        from orbitsim.forces.compat import check_run
+        from orbitsim.forces.compat import check_run  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
         why = check_run(self.forces.names, self.spec.name, self.settings, self.events is not None)
         if why is None and self.forces.per_body.shape[2] != len(np.atleast_1d(self.masses)):
@@ -191,9 +193,6 @@ class Simulation:
         evaluated at ``pos``, exactly as for a new simulation: this is how a run starts, and how it
         continues after a merge or a removal (:mod:`orbitsim.events.driver`).
         """
-        from orbitsim.physics.diagnostics import potential_rows_scratch
-        from orbitsim.physics.force_context import accelerations_at, make_force
-
         self.m, self.pos, self.vel = (np.ascontiguousarray(a, dtype=np.float64) for a in (m, pos, vel))
         self.n = int(self.m.shape[0])
         self.force = make_force(self.G, self.softening, self.n)
@@ -207,20 +206,16 @@ class Simulation:
                            undo=False)  # a stop here ends the run before its first step: nothing to undo
         self.step_force = self.force  # the context the run loop gets: with the forces, when there are some
         if self.forces is not None:
-            from orbitsim.forces.hooks import forced_context
-
             self.step_force = forced_context(self.force, self.forces, self.n)
 
     def total_energy(self) -> float:
         """Kinetic plus potential energy of the current state, plus the forces' energy
         (:func:`orbitsim.forces.kernels.force_energy`) in a run with forces."""
-        from orbitsim.physics.diagnostics import kinetic_energy, potential_energy_at
-
         potential = self._call_kernels(functools.partial(potential_energy_at, self.force, self.pos, self.m,
                                                          self.rows), undo=False)
         energy = float(kinetic_energy(self.vel, self.m)) + float(potential)
         if self.forces is not None:
-            from orbitsim.forces.kernels import force_energy
+            from orbitsim.forces.kernels import force_energy  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
             energy += float(force_energy(self.pos, self.vel, self.m, self.G, self.step_force.forces.terms))
         return energy
@@ -320,7 +315,7 @@ class Simulation:
         self.call_undone = False
         if self.n < INTERRUPTIBLE_MIN_N:
             return call()
-        from orbitsim.stopping import run_interruptible
+        from orbitsim.stopping import run_interruptible  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
         if not undo:
             return run_interruptible(call, self.threads_used)
@@ -363,9 +358,7 @@ class Simulation:
     def _with_elements(self, chunk: SampleChunk, keep_positions: bool) -> SampleChunk:
         """The chunk with every body's elements in ``extra`` (NaN for bodies out of the run), its
         states dropped unless they were asked for."""
-        from dataclasses import replace
-
-        from orbitsim.physics.orbital_elements import osculating_elements
+        from orbitsim.physics.orbital_elements import osculating_elements  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
         masses = self.m if self.watcher is None else self.watcher.scenario_masses()
         elements = osculating_elements(masses, chunk.positions, chunk.velocities, self.G, self.elements)

@@ -39,6 +39,8 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
+from orbitsim.physics.force_context import newtonian_accelerations
+
 if TYPE_CHECKING:
     from orbitsim.forces.table import ForceSet
     from orbitsim.physics.force_context import ForceContext
@@ -60,8 +62,8 @@ class Forces(NamedTuple):
 def forced_context(force: ForceContext, forces: ForceSet, n: int) -> ForceContext:
     """``force`` (a context of :func:`~orbitsim.physics.force_context.make_force` for N bodies) with the
     ForceSet's forces in its ``forces`` field."""
-    from orbitsim.forces.kernels import make_force_scratch
-    from orbitsim.forces.terms import terms_of
+    from orbitsim.forces.kernels import make_force_scratch  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
+    from orbitsim.forces.terms import terms_of  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     return force._replace(forces=Forces(terms_of(*forces.arrays), make_force_scratch(n), np.zeros((3, n))))
 
@@ -81,7 +83,7 @@ def _velocity_dependent(force: Any) -> bool:
     terms = _terms(force)
     if terms is None:
         return False
-    from orbitsim.forces.kernels import has_velocity_terms
+    from orbitsim.forces.kernels import has_velocity_terms  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     return has_velocity_terms(terms)
 
@@ -127,7 +129,7 @@ def record_force_energy(force, pos, vel, m, scalars, r):
 def _add_forces(force, pos, vel, m, acc):
     if _terms(force) is None:
         return lambda force, pos, vel, m, acc: None
-    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of
+    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     def impl(force, pos, vel, m, acc):
         forces = force.forces
@@ -140,7 +142,7 @@ def _add_forces(force, pos, vel, m, acc):
 def _add_kick_forces(force, pos, m, acc):
     if _terms(force) is None:
         return lambda force, pos, m, acc: None
-    from orbitsim.forces.kernels import add_position_forces_of
+    from orbitsim.forces.kernels import add_position_forces_of  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     return lambda force, pos, m, acc: add_position_forces_of(force.forces.terms, pos, m, force.G, acc)
 
@@ -149,7 +151,7 @@ def _add_kick_forces(force, pos, m, acc):
 def _velocity_operator(force, pos, vel, m, h):
     if not _velocity_dependent(force):
         return lambda force, pos, vel, m, h: None
-    from orbitsim.forces.kernels import velocity_operator_of
+    from orbitsim.forces.kernels import velocity_operator_of  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     return lambda force, pos, vel, m, h: velocity_operator_of(force.forces.terms, pos, vel, m, force.G, h,
                                                                force.forces.scratch)
@@ -166,7 +168,7 @@ def _has_velocity_operator(force):
 def _add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn):
     if _terms(force) is None:
         return lambda force, pos, m, at, b, csv, v0, a0, dt, hn: None
-    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of
+    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     if not _velocity_dependent(force):
         return lambda force, pos, m, at, b, csv, v0, a0, dt, hn: add_position_forces_of(force.forces.terms, pos, m,
@@ -191,8 +193,7 @@ def _add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn):
 def _refresh_accelerations(force, pos, vel, m, acc, derivative):
     if _terms(force) is None:
         return lambda force, pos, vel, m, acc, derivative: None
-    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of
-    from orbitsim.physics.force_context import newtonian_accelerations
+    from orbitsim.forces.kernels import add_position_forces_of, add_velocity_forces_of  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     def impl(force, pos, vel, m, acc, derivative):
         forces = force.forces
@@ -207,7 +208,7 @@ def _refresh_accelerations(force, pos, vel, m, acc, derivative):
 def _record_force_energy(force, pos, vel, m, scalars, r):
     if _terms(force) is None:
         return lambda force, pos, vel, m, scalars, r: None
-    from orbitsim.forces.kernels import force_energy
+    from orbitsim.forces.kernels import force_energy  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
     def impl(force, pos, vel, m, scalars, r):
         scalars[r, 1] += force_energy(pos, vel, m, force.G, force.forces.terms)

@@ -33,9 +33,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from orbitsim.forces.compat import DERIVATIVE, check_run
 from orbitsim.forces.table import GR, GR_FULL, GR_POTENTIAL, POSITION_ONLY, ForceSet
 from orbitsim.reference.bridge import ReboundScheme
-from orbitsim.reference.rebx import REBX_NAMES, AttachedForces
+from orbitsim.reference.rebx import REBX_NAMES, AttachedForces, attach_forces
 
 __all__ = ["attach_rebound_forces", "forces_summary", "orbitsim_force_lines", "orbitsim_refusal",
            "rebound_force_lines", "rebound_refusal"]
@@ -44,7 +45,7 @@ __all__ = ["attach_rebound_forces", "forces_summary", "orbitsim_force_lines", "o
 def _entry_text(forces: ForceSet, row: int) -> str:
     """``gr about sun (c = 173.1446327)``: the force as the scenario resolved it (its id's name
     and body indices when the set was built without entries)."""
-    from orbitsim.scenario.forces import describe_forces
+    from orbitsim.scenario.forces import describe_forces  # noqa: PLC0415 -- lazy: loads yaml
 
     if row < len(forces.entries):
         return describe_forces([forces.entries[row]])
@@ -100,7 +101,6 @@ def orbitsim_refusal(forces: ForceSet | None, integrator: str, settings: dict[st
     or None."""
     if forces is None or forces.ids.shape[0] == 0:
         return None
-    from orbitsim.forces.compat import check_run
 
     return check_run(forces.names, integrator, dict(settings or {}), False)
 
@@ -119,7 +119,6 @@ def attach_rebound_forces(sim: Any, forces: ForceSet | None, scheme: ReboundSche
     """
     if forces is None or forces.ids.shape[0] == 0:
         return None
-    from orbitsim.reference.rebx import attach_forces
 
     attached = attach_forces(sim, forces, split=_split(scheme))
     if scheme.name == "whfast" and forces.velocity_dependent:
@@ -152,7 +151,6 @@ def orbitsim_force_lines(forces: ForceSet | None, integrator: str) -> tuple[str,
     """How orbitsim's ``integrator`` applies each force, one phrase per force (empty without)."""
     if forces is None or forces.ids.shape[0] == 0:
         return ()
-    from orbitsim.forces.compat import DERIVATIVE
 
     lines = []
     for row, fid in enumerate(int(i) for i in forces.ids):
