@@ -16,19 +16,9 @@ from pathlib import Path
 import h5py
 import pytest
 from click.testing import CliRunner
+from test_cli import TINY  # the CLI tests' two-body scenario: its info output is pinned below
 
 from orbitsim.cli.main import cli
-
-TINY = """\
-name: tiny
-integrator: verlet
-dt: 0.01
-steps: 200
-output: {every: 10}
-bodies:
-  - {name: star, m: 1.0, x: [0, 0, 0], v: [0, 0, 0]}
-  - {name: planet, m: 1.0e-3, primary: star, a: 1.0, e: 0.1, M: 0}
-"""
 
 #: ``info`` on TINY's trace, as the code printed it before the events section was added; ``{*}``
 #: stands for what differs between machines and versions (paths, timings, provenance, hashes).
