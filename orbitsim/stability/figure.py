@@ -39,7 +39,7 @@ def _edges(values: np.ndarray, log: bool) -> np.ndarray:
 
 
 def draw_map(path: str | os.PathLike, data: dict[str, Any], indicator: str) -> None:
-    """Draw ``indicator`` from a map's ``data`` (as :func:`orbitsim.stability.driver.read_map` returns) into ``path``."""
+    """Draw ``indicator`` of a map's ``data`` (:func:`orbitsim.stability.driver.read_map`) into ``path``."""
     import matplotlib  # noqa: PLC0415 - lazy: loads matplotlib
 
     matplotlib.use("Agg")

@@ -176,3 +176,19 @@ def test_a_map_killed_mid_way_is_finished_bit_identically(scenario, tmp_path):
     a, b = _grids(out / "map.h5"), _grids(straight / "map.h5")
     for name in a:
         assert np.array_equal(a[name], b[name], equal_nan=True), name
+
+
+@pytest.mark.slow
+def test_a_map_on_dask_workers_has_the_bits_of_a_local_one(scenario, tmp_path):
+    from orbitsim.batch.cluster import ClusterPlan, open_client
+
+    local = tmp_path / "local"
+    assert _map([str(scenario), *AXES, "-o", str(local)])[0] == 0
+    with open_client(None, ClusterPlan(workers=2, threads=1)) as client:
+        address = client.scheduler.address
+        code, _, stderr = _map([str(scenario), *AXES, "--chunk", "1", "--scheduler", address, "-o",
+                                str(tmp_path / "dask")])
+    assert code == 0, stderr
+    a, b = _grids(local / "map.h5"), _grids(tmp_path / "dask" / "map.h5")
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
