@@ -13,9 +13,11 @@ from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kic
 
 @jit
 def kick_per_system(jpos, jvel, m, weights, mu, ipos, iacc, reps):
-    for _ in range(reps):
-        for k in range(jpos.shape[0]):
-            interaction_kick(jpos[k], jvel[k], m[k], 1.0, 0.0, 1e-9, JACOBI, weights[k], mu[k], ipos[k], iacc[k], None)
+    """System by system, its views taken once and all its kicks in a row, as the ensemble kernel steps."""
+    for k in range(jpos.shape[0]):
+        p, v, mk, w, u, ip, ia = jpos[k], jvel[k], m[k], weights[k], mu[k], ipos[k], iacc[k]
+        for _ in range(reps):
+            interaction_kick(p, v, mk, 1.0, 0.0, 1e-9, JACOBI, w, u, ip, ia, None)
 
 @jit
 def kick_lanes(jpos, jvel, m, weights, mu, ipos, acc, reps):
