@@ -26,7 +26,12 @@ Indicators (columns of :mod:`orbitsim.ensemble.status`), per system:
   ``|a - a_0| / |a_0|`` of its Jacobi semi-major axis, read after every kick (Jacobi elements about
   the interior bodies' mass, with ``mu = G M_i``, as REBOUND's default ``orbits()``);
 * ``energy_error``: ``|E_end - E_0| / |E_0|`` of the synchronised inertial state at the stop; a
-  massless body carries no energy, so it measures the massive bodies only.
+  massless body carries no energy, so it measures the massive bodies only;
+* ``megno``, ``lyapunov`` (:func:`run_ensemble_variational` only, NaN otherwise): MEGNO <Y> and the
+  mLCE at the stop, from a tangent vector stepped by the Wisdom-Holman tangent map
+  (:mod:`orbitsim.integrators.wisdom_holman.tangent`, REBOUND's WHFast in safe mode) and read after every
+  step as a single-system chaos run reads it (:mod:`orbitsim.chaos.step`). That step keeps the inertial
+  state between steps, so its bodies differ from :func:`run_ensemble_wh`'s by round-off.
 """
 
 from __future__ import annotations
@@ -37,6 +42,8 @@ import numpy as np
 from numba import prange
 
 from orbitsim._jit import jit, jit_parallel_exact
+from orbitsim.chaos.megno import MegnoState, lyapunov, megno_value
+from orbitsim.chaos.step import megno_after_step
 from orbitsim.ensemble.status import (
     COLLIDED,
     COMPLETE,
@@ -50,6 +57,17 @@ from orbitsim.ensemble.status import (
     SURVIVAL_TIME,
 )
 from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kick
+from orbitsim.integrators.wisdom_holman.tangent import (
+    T_ACC,
+    T_DACC,
+    T_DIPOS,
+    T_DJPOS,
+    T_DJVEL,
+    T_IPOS,
+    T_JPOS,
+    T_JVEL,
+    tangent_step,
+)
 from orbitsim.physics.coordinates import inertial_to_jacobi, jacobi_to_inertial
 from orbitsim.physics.diagnostics import kinetic_energy, potential_energy
 from orbitsim.physics.kepler import KEPLER_OK, kepler_drift_bodies
@@ -180,6 +198,68 @@ def run_system(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_col
     return status, done
 
 
+@jit
+def run_system_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps, escape_r2, radii, check_collisions,
+                           watch, weights, mu, scratch, rows, out):
+    """:func:`run_system` with the tangent vector ``dpos``, ``dvel`` (3, N) carried by the Wisdom-Holman
+    tangent map (:func:`orbitsim.integrators.wisdom_holman.tangent.tangent_step`, REBOUND's WHFast in
+    safe mode: the inertial state between steps) and MEGNO read after every step
+    (:func:`orbitsim.chaos.step.megno_after_step`), as a single-system chaos run does. ``scratch``
+    (TANGENT_SCRATCH_ROWS, 3, N). Fills the MEGNO and Lyapunov columns too."""
+    jpos, jvel, djpos, djvel = scratch[T_JPOS], scratch[T_JVEL], scratch[T_DJPOS], scratch[T_DJVEL]
+    ipos, acc, dipos, dacc = scratch[T_IPOS], scratch[T_ACC], scratch[T_DIPOS], scratch[T_DACC]
+    G = force.G
+    e0 = _energy(pos, vel, m, G, rows)
+    inertial_to_jacobi(pos, weights, jpos)
+    inertial_to_jacobi(vel, weights, jvel)
+    a0, max_e = jacobi_elements_ae(jpos, jvel, mu, watch)
+    delta_a = 0.0
+    megno = MegnoState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, t_start, 0)
+    status = COMPLETE
+    done = 0
+    while done < n_steps:
+        kstatus, _ = tangent_step(pos, vel, dpos, dvel, m, G, force.eps2, dt, weights, mu, jpos, jvel, djpos, djvel,
+                                  ipos, acc, dipos, dacc, force)
+        done += 1
+        if kstatus != KEPLER_OK:
+            status = DIVERGED
+            break
+        megno, _ = megno_after_step(megno, pos, m, force, dpos, dvel, dacc, t_start + done * dt, dt)
+        a, e = jacobi_elements_ae(jpos, jvel, mu, watch)
+        if e > max_e:
+            max_e = e
+        spread = abs(a - a0) / abs(a0)
+        if spread > delta_a:
+            delta_a = spread
+        status = _stop_reason(pos, radii, escape_r2, check_collisions)
+        if status != COMPLETE:
+            break
+    t = t_start + done * dt
+    out[SURVIVAL_TIME] = t
+    out[MAX_E] = max_e
+    out[DELTA_A] = delta_a
+    out[MEGNO] = megno_value(megno, t)
+    out[LYAPUNOV] = lyapunov(megno)
+    if status == DIVERGED:
+        out[ENERGY_ERROR] = np.nan
+        return status, done
+    out[ENERGY_ERROR] = abs((_energy(pos, vel, m, G, rows) - e0) / e0)
+    return status, done
+
+
+@jit_parallel_exact
+def run_ensemble_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps, escape_r2, radii,
+                             check_collisions, watch, weights, mu, scratch, rows, status, steps, out):
+    """:func:`run_system_variational` for every system k (``dpos``, ``dvel`` (K, 3, N); ``scratch``
+    (K, TANGENT_SCRATCH_ROWS, 3, N); the rest as :func:`run_ensemble_wh`), in parallel over k."""
+    for k in prange(pos.shape[0]):
+        st, done = run_system_variational(pos[k], vel[k], dpos[k], dvel[k], m[k], force, dt, t_start, n_steps,
+                                          escape_r2, radii[k], check_collisions, watch, weights[k], mu[k], scratch[k],
+                                          rows, out[k])
+        status[k] = st
+        steps[k] = done
+
+
 @jit_parallel_exact
 def run_ensemble_wh(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_collisions, watch,
                     jpos, jvel, ipos, iacc, weights, mu, ks, kstage, rows, status, steps, out):
@@ -194,6 +274,5 @@ def run_ensemble_wh(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, chec
         steps[k] = done
 
 
-#: Whether the kernel carries variational equations (MEGNO, Lyapunov time): not until the
-#: Wisdom-Holman tangent map is built (issue 29, item 1); until then those columns are NaN.
-HAS_VARIATIONS = False
+#: Whether the ensemble has variational equations (MEGNO, Lyapunov time): :func:`run_ensemble_variational`.
+HAS_VARIATIONS = True

@@ -34,7 +34,8 @@ def _as_systems(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndar
 
 def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float, dt: float,
                  n_steps: int, t_start: float = 0.0, escape_distance: float = np.inf,
-                 radii: np.ndarray | None = None, watch: int = 1) -> EnsembleResult:
+                 radii: np.ndarray | None = None, watch: int = 1,
+                 variation: tuple[np.ndarray, np.ndarray] | None = None) -> EnsembleResult:
     """Run K systems of N bodies with the Wisdom-Holman map (Jacobi coordinates, no corrector).
 
     Parameters
@@ -55,6 +56,9 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
         Body radii; with them, two bodies closer than the sum of their radii have collided.
     watch : int
         The body whose Jacobi a and e the ``max_e`` and ``delta_a`` indicators follow (>= 1).
+    variation : pair of (K, 3, N) arrays, optional
+        Initial tangent vectors (dr, dv): with them every system carries its variational equations
+        (the Wisdom-Holman tangent map) and the ``megno`` and ``lyapunov`` columns are filled.
 
     Returns
     -------
@@ -97,6 +101,21 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
     steps = np.zeros(k, dtype=np.int64)
     out = np.zeros((k, N_COLUMNS))
     escape_r2 = float(escape_distance) ** 2
+    if variation is not None:
+        from orbitsim.ensemble.kernels import run_ensemble_variational  # noqa: PLC0415 - lazy: loads numba
+        from orbitsim.integrators.wisdom_holman.tangent import TANGENT_SCRATCH_ROWS  # noqa: PLC0415 - as above
+        from orbitsim.physics.force_context import make_force  # noqa: PLC0415 - lazy: as above
+
+        dpos = _as_systems("variation positions", variation[0], (k, 3, n))
+        dvel = _as_systems("variation velocities", variation[1], (k, 3, n))
+        if not (np.isfinite(dpos).all() and np.isfinite(dvel).all()) or not (np.abs(dpos).sum(axis=(1, 2)) +
+                                                                             np.abs(dvel).sum(axis=(1, 2)) > 0).all():
+            raise ValueError("ensemble: every system's initial variation must be finite and non-zero")
+        scratch_t = np.zeros((k, TANGENT_SCRATCH_ROWS, 3, n))
+        run_ensemble_variational(pos, vel, dpos, dvel, m, make_force(float(G), 0.0, n), float(dt), float(t_start),
+                                 np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch), weights, mu,
+                                 scratch_t, np.zeros(0), status, steps, out)
+        return EnsembleResult(status, steps, out, pos, vel)
     run_ensemble_wh(pos, vel, m, float(G), float(dt), float(t_start), np.int64(n_steps), escape_r2, r,
                     check_collisions, np.int64(watch), *scratch, weights, mu, ks, kstage, np.zeros(0), status,
                     steps, out)

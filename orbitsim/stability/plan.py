@@ -24,8 +24,6 @@ __all__ = ["INDICATORS", "ChunkResult", "MapPlan", "chunk_states", "fingerprint"
 
 #: The indicators a map computes, all in one pass (the ``--indicator`` names).
 INDICATORS = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_a", "energy_error")
-#: Indicators that need the variational equations.
-VARIATIONAL_INDICATORS = ("megno", "lyapunov_time")
 #: Default escape distance: this many times the largest start distance from body 0 over the map.
 ESCAPE_FACTOR = 10.0
 
@@ -45,6 +43,7 @@ class MapPlan(NamedTuple):
     radii: np.ndarray | None  #: (N,) or None: no collision check
     barycentric: bool
     chunk: int  #: pixels per chunk
+    seed: int  #: seed of every pixel's initial variation (orbitsim.chaos.megno.random_initial_variation)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -112,6 +111,7 @@ def run_chunk(plan: MapPlan, index: int) -> ChunkResult:
     """Run chunk ``index`` of the map in one ensemble call (any process: a Dask worker too)."""
     import time  # noqa: PLC0415 - lazy: kept beside its one use
 
+    from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: as above
     from orbitsim.ensemble import run_ensemble  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.ensemble.status import (  # noqa: PLC0415
         DELTA_A,
@@ -124,9 +124,11 @@ def run_chunk(plan: MapPlan, index: int) -> ChunkResult:
 
     m, x, v = chunk_states(plan, index)
     radii = None if plan.radii is None else np.tile(plan.radii, (m.shape[0], 1))
+    dpos, dvel = random_initial_variation(m.shape[1], plan.seed)
+    variation = (np.tile(dpos, (m.shape[0], 1, 1)), np.tile(dvel, (m.shape[0], 1, 1)))
     started = time.perf_counter()
     result = run_ensemble(m, x, v, G=plan.G, dt=plan.dt, n_steps=plan.n_steps, t_start=plan.t_start,
-                          escape_distance=plan.escape_distance, radii=radii, watch=plan.watch)
+                          escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation)
     seconds = time.perf_counter() - started
     cols = result.indicators
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -143,13 +145,13 @@ def fingerprint(plan: MapPlan) -> str:
         "doc": plan.doc, "axes": [(a.body, a.key, a.values.tolist(), a.log) for a in plan.axes], "G": plan.G,
         "dt": plan.dt, "t_start": plan.t_start, "n_steps": plan.n_steps, "escape": plan.escape_distance,
         "watch": plan.watch, "radii": None if plan.radii is None else plan.radii.tolist(),
-        "barycentric": plan.barycentric,
+        "barycentric": plan.barycentric, "seed": plan.seed,
     }
     return hashlib.sha256(json.dumps(record, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float,
-              escape_distance: float | None, chunk: int) -> MapPlan:
+              escape_distance: float | None, chunk: int, seed: int = 0) -> MapPlan:
     """Check that the ensemble can run ``scenario`` over ``axes`` up to ``t_end``; raise :class:`MapSpecError`.
 
     Every pixel's start state is built here once, so a pixel the scenario reader rejects (``e = 1.2``
@@ -183,7 +185,7 @@ def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float
     plan = MapPlan(copy.deepcopy(doc), tuple(scenario.names), tuple(axes), float(scenario.G), float(scenario.dt),
                    float(scenario.t_start), n_steps, math.inf, watch,
                    None if scenario.radii is None else np.asarray(scenario.radii, dtype=np.float64),
-                   scenario.frame == "barycentric", int(chunk))
+                   scenario.frame == "barycentric", int(chunk), int(seed))
     if len(plan.names) != len(doc["bodies"]):
         raise MapSpecError("a map needs every body in the scenario's bodies list (no ephemeris or generator)")
     farthest = 0.0

@@ -52,11 +52,20 @@ def test_each_system_gets_the_bits_of_a_single_wisdom_holman_run():
                                                                    rel=1e-6, abs=1e-15)  # two energy sums
 
 
-def test_bits_do_not_depend_on_chunking_or_threads():
+@pytest.mark.parametrize("variational", [False, True])
+def test_bits_do_not_depend_on_chunking_or_threads(variational):
+    from orbitsim.chaos.megno import random_initial_variation
+
     masses, pos, vel = _giants(6)
-    whole = run_ensemble(masses, pos, vel, G=1.0, dt=DT, n_steps=N_STEPS)
-    parts = [run_ensemble(masses[i:i + 2], pos[i:i + 2], vel[i:i + 2], G=1.0, dt=DT, n_steps=N_STEPS)
-             for i in range(0, 6, 2)]
+    dpos, dvel = random_initial_variation(4, 3)
+    var = (np.tile(dpos, (6, 1, 1)), np.tile(dvel, (6, 1, 1))) if variational else None
+
+    def part(i: int, j: int):
+        return run_ensemble(masses[i:j], pos[i:j], vel[i:j], G=1.0, dt=DT, n_steps=N_STEPS,
+                            variation=None if var is None else (var[0][i:j], var[1][i:j]))
+
+    whole = part(0, 6)
+    parts = [part(i, i + 2) for i in range(0, 6, 2)]
     assert np.array_equal(whole.indicators, np.concatenate([p.indicators for p in parts]), equal_nan=True)
     assert np.array_equal(whole.pos, np.concatenate([p.pos for p in parts]))
     before = numba.get_num_threads()
@@ -64,7 +73,7 @@ def test_bits_do_not_depend_on_chunking_or_threads():
         by_count = {}
         for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
             numba.set_num_threads(threads)
-            by_count[threads] = run_ensemble(masses, pos, vel, G=1.0, dt=DT, n_steps=N_STEPS)
+            by_count[threads] = part(0, 6)
     finally:
         numba.set_num_threads(before)
     first, last = by_count.values()
@@ -113,3 +122,28 @@ def test_front_door_refuses_bad_input(change, message):
     kwargs = {"G": 1.0, "dt": DT, "n_steps": 10, **change}
     with pytest.raises(ValueError, match=message):
         run_ensemble(masses, pos, vel, **kwargs)
+
+
+def test_the_variational_ensemble_gets_the_bits_of_a_single_system_chaos_run():
+    from orbitsim.chaos.megno import lyapunov, megno_start, megno_value, random_initial_variation
+    from orbitsim.ensemble.status import LYAPUNOV, MEGNO
+    from orbitsim.integrators.wisdom_holman.tangent import TANGENT_SCRATCH_ROWS, tangent_run
+    from orbitsim.physics.coordinates import jacobi_weights
+    from orbitsim.physics.force_context import make_force
+
+    masses, pos, vel = _giants(3)
+    dpos, dvel = random_initial_variation(4, 0)
+    variation = (np.tile(dpos, (3, 1, 1)), np.tile(dvel, (3, 1, 1)))
+    result = run_ensemble(masses, pos, vel, G=1.0, dt=DT, n_steps=N_STEPS, variation=variation)
+    assert (result.status == COMPLETE).all()
+    for k in range(3):
+        p, v, dp, dv = pos[k].copy(), vel[k].copy(), dpos.copy(), dvel.copy()
+        m = masses[k]
+        n_done, status, _, megno, _ = tangent_run(p, v, dp, dv, m, make_force(1.0, 0.0, 4), DT, jacobi_weights(m),
+                                                  np.cumsum(m), np.zeros((TANGENT_SCRATCH_ROWS, 3, 4)),
+                                                  megno_start(0.0), 0.0, 0, N_STEPS)
+        assert (n_done, status) == (N_STEPS, 0)
+        assert np.array_equal(result.pos[k], p)  # the same tangent map, step for step
+        assert result.indicators[k, MEGNO] == megno_value(megno, N_STEPS * DT)
+        assert result.indicators[k, LYAPUNOV] == lyapunov(megno)
+    assert 1.5 < result.indicators[0, MEGNO] < 3.0  # the giants are regular: MEGNO near 2
