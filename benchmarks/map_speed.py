@@ -23,7 +23,7 @@ def main() -> None:
     parser.add_argument("--years", type=float, default=1e4)
     parser.add_argument("--k", type=int, default=4096)
     parser.add_argument("--steps", type=int, default=2000)
-    parser.add_argument("--indicator", default="max_e")
+    parser.add_argument("--indicator", default="megno")
     parser.add_argument("--figure", type=Path, default=None)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
@@ -56,9 +56,12 @@ def _figure(path: Path, megno: np.ndarray, ours: Path, indicator: str) -> None:
     fig.colorbar(im, ax=axes[0], label="MEGNO (clipped to 1.5-8; white: escaped)")
     axes[0].set_title("REBOUND WHFast + init_megno")
     grid = np.where(data["status"] == 0, data["indicators"][indicator], np.nan)
-    im = axes[1].imshow(grid, origin="lower", extent=extent, aspect="auto", cmap="viridis")
-    fig.colorbar(im, ax=axes[1], label=f"orbitsim {indicator} (white: escaped)")
-    axes[1].set_title("orbitsim map")
+    clipped = indicator == "megno"
+    im = axes[1].imshow(np.clip(grid, 1.5, 8) if clipped else grid, origin="lower", extent=extent, aspect="auto",
+                        cmap="viridis")
+    fig.colorbar(im, ax=axes[1], label=f"orbitsim {indicator}{' (clipped to 1.5-8' if clipped else ' ('}"
+                                       "; white: escaped)")
+    axes[1].set_title("orbitsim map (ensemble, Wisdom-Holman tangent map)")
     for ax in axes:
         ax.set_xlabel("a [au]")
         ax.set_ylabel("e")

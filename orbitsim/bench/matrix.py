@@ -314,7 +314,7 @@ def _read_memory(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
 def _read_ensemble(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
     return {"map_n": r.integer(g, "map_n", path, 20, minimum=2),
             "years": r.number(g, "years", path, 1e4),
-            "indicator": g.get("indicator", "max_e"),
+            "indicator": g.get("indicator", "megno"),
             "k": r.integer(g, "k", path, 4096, minimum=1),
             "steps": r.integer(g, "steps", path, 2000, minimum=1)}
 
