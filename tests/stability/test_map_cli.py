@@ -186,3 +186,31 @@ def test_a_map_on_dask_workers_has_the_bits_of_a_local_one(scenario, tmp_path):
     a, b = _grids(local / "map.h5"), _grids(tmp_path / "dask" / "map.h5")
     for name in a:
         assert np.array_equal(a[name], b[name], equal_nan=True), name
+
+
+@pytest.mark.slow
+def test_a_killed_dask_worker_loses_no_pixel(scenario, tmp_path):
+    import threading
+
+    from orbitsim.batch.cluster import ClusterPlan, open_client
+
+    axes = ["--x", "planet.a=7.0:8.0:4", "--y", "planet.e=0:0.3:3", "--t-end", "3000", "--quiet"]
+    local = tmp_path / "local"
+    assert _map([str(scenario), *axes, "-o", str(local)])[0] == 0
+    out = tmp_path / "dask"
+    with open_client(None, ClusterPlan(workers=2, threads=1)) as client:
+        pids = list(client.run(os.getpid).values())
+        outcome = {}
+        runner = threading.Thread(target=lambda: outcome.update(result=_map(
+            [str(scenario), *axes, "--chunk", "1", "--scheduler", client.scheduler.address, "-o", str(out)])))
+        runner.start()
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and not list((out / "map.parts").glob("chunk-*.npz")):
+            time.sleep(0.01)
+        os.kill(pids[0], signal.SIGKILL)  # a worker dies mid-map; its nanny starts another
+        runner.join(600)
+    code, _, stderr = outcome["result"]
+    assert code == 0, stderr
+    a, b = _grids(local / "map.h5"), _grids(out / "map.h5")
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
