@@ -194,7 +194,7 @@ def test_a_killed_dask_worker_loses_no_pixel(scenario, tmp_path):
 
     from orbitsim.batch.cluster import ClusterPlan, open_client
 
-    axes = ["--x", "planet.a=7.0:8.0:4", "--y", "planet.e=0:0.3:3", "--t-end", "3000", "--quiet"]
+    axes = ["--x", "planet.a=7.0:8.0:4", "--y", "planet.e=0:0.3:3", "--t-end", "20000", "--quiet"]
     local = tmp_path / "local"
     assert _map([str(scenario), *axes, "-o", str(local)])[0] == 0
     out = tmp_path / "dask"
@@ -208,6 +208,7 @@ def test_a_killed_dask_worker_loses_no_pixel(scenario, tmp_path):
         while time.monotonic() < deadline and not list((out / "map.parts").glob("chunk-*.npz")):
             time.sleep(0.01)
         os.kill(pids[0], signal.SIGKILL)  # a worker dies mid-map; its nanny starts another
+        assert not (out / "map.h5").exists()  # it died with chunks still to run (both workers were busy)
         runner.join(600)
     code, _, stderr = outcome["result"]
     assert code == 0, stderr
