@@ -82,7 +82,7 @@ __all__ = [
 ]
 
 #: What a group can measure (see :mod:`orbitsim.bench.runner` for how each is timed).
-KINDS = ("steps", "kernels", "startup", "sampling", "memory", "adaptive", "trace")
+KINDS = ("steps", "kernels", "startup", "sampling", "memory", "adaptive", "trace", "ensemble")
 
 #: REBOUND schemes and their force evaluations per step: leapfrog of order 2k composes
 #: 1, 3, 9, 17 substeps (the tables in :mod:`orbitsim.integrators.leapfrog`); WHFast uses one.
@@ -102,6 +102,7 @@ _GROUP_KEYS: dict[str, tuple[str, ...]] = {
     "memory": ("n", "steps", "trace_n", "trace_samples", "trace_every", "limit_mb"),
     "adaptive": ADAPTIVE_KEYS,
     "trace": TRACE_KEYS,
+    "ensemble": ("map_n", "years", "indicator", "k", "steps"),
 }
 _COMMON_GROUP_KEYS = ("name", "kind", "repeats", "warmup", "description")
 
@@ -310,9 +311,17 @@ def _read_memory(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
             "limit_mb": r.number(g, "limit_mb", path, 300.0)}
 
 
+def _read_ensemble(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]:
+    return {"map_n": r.integer(g, "map_n", path, 20, minimum=2),
+            "years": r.number(g, "years", path, 1e4),
+            "indicator": g.get("indicator", "megno"),
+            "k": r.integer(g, "k", path, 4096, minimum=1),
+            "steps": r.integer(g, "steps", path, 2000, minimum=1)}
+
+
 _READERS: dict[str, Callable[[Reader, Mapping[str, Any], str], dict[str, Any]]] = {
     "steps": _read_steps, "kernels": _read_kernels, "startup": _read_startup, "sampling": _read_sampling,
-    "memory": _read_memory, "adaptive": read_adaptive, "trace": read_trace,
+    "memory": _read_memory, "adaptive": read_adaptive, "trace": read_trace, "ensemble": _read_ensemble,
 }
 
 

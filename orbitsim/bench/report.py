@@ -141,6 +141,13 @@ def _probes(doc: dict[str, Any]) -> list[str]:
                            f"{_time(p['cold_cpu_s'])} CPU, {len(p['compiled_functions'])} functions compiled: "
                            f"{', '.join(p['compiled_functions']) or '(none)'}")
             out.append("")
+        elif p["kind"] == "ensemble":
+            out.append(f"- {p['map_n']} x {p['map_n']} Jupiter-Saturn map, {p['years']:g} yr: REBOUND WHFast + MEGNO "
+                       f"on Pool(2) {_time(p['rebound_map_s'])}; orbitsim map ({p['indicator']}) "
+                       f"{_time(p['orbitsim_map_s'])} for the whole command (kernels {_time(p['orbitsim_kernel_s'])}); "
+                       f"REBOUND / orbitsim = {p['rebound_map_s'] / p['orbitsim_map_s']:.2f}")
+            out.append(f"- ns per system-step, 4 bodies: ensemble of K = {p['k']} {p['ensemble_ns']:.0f}, one system "
+                       f"(wisdom_holman, 1 thread) {p['single_ns']:.0f}, REBOUND WHFast {p['rebound_ns']:.0f}\n")
         elif p["kind"] == "sampling":
             out.append(f"{p['integrator']}, N = {p['n']}, {p['steps']} steps: every {p['every']} steps "
                        f"({p['samples']} samples) {_spread(p['with_samples'])}; first and last only "

@@ -50,6 +50,9 @@ def quick_matrix(matrix: BenchMatrix) -> BenchMatrix:
             p["trace_samples"] = 0
         elif g.kind == "kernels":
             p["work"] = p["work"] / 10.0
+        elif g.kind == "ensemble":
+            p["map_n"], p["years"], p["k"], p["steps"] = min(p["map_n"], 8), p["years"] / 10.0, min(p["k"], 512), \
+                max(1, p["steps"] // 10)
         elif g.kind in ("adaptive", "trace"):
             p["t_end"] = {n: t / 10.0 for n, t in p["t_end"].items()}
         groups.append(dataclasses.replace(g, repeats=min(g.repeats, 3), warmup=min(g.warmup, 1), params=p))
@@ -112,10 +115,10 @@ def _run_steps_group(group: Group, matrix: BenchMatrix, progress: Progress,
 
 
 def _run_probe(group: Group, progress: Progress) -> dict[str, Any]:
-    from orbitsim.bench import kernels, probes  # noqa: PLC0415 -- lazy: loads numba
+    from orbitsim.bench import ensemble, kernels, probes  # noqa: PLC0415 -- lazy: loads numba
 
     run = {"kernels": kernels.run_kernels, "startup": probes.run_startup, "sampling": probes.run_sampling,
-           "memory": probes.run_memory}[group.kind]
+           "memory": probes.run_memory, "ensemble": ensemble.run_ensemble_probe}[group.kind]
     start = time.perf_counter()
     result = run(group)
     progress(f"{group.name} ({group.kind}): done in {time.perf_counter() - start:.1f} s")

@@ -63,7 +63,13 @@ def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
       orbitsim info long.h5.ckpt
     """
     from orbitsim.checkpoint.report import is_checkpoint_request
+    from orbitsim.stability.store import is_map_file
 
+    if os.path.isfile(trace) and is_map_file(trace):
+        if events_kind is not None or show_scenario:
+            raise OneLineUsageError(f"{trace} is a map file: --scenario and --events read traces")
+        _map_info(trace)
+        return
     if events_kind is not None:
         if show_scenario:
             raise OneLineUsageError("--scenario and --events print different things; give one")
@@ -232,3 +238,34 @@ def _time_range(path: str, n_samples: int) -> str:
         err = np.asarray(f["energy_error"][()])
     worst = float(np.max(np.abs(err))) if err.size else math.nan
     return f", t = {first:.10g} .. {last:.10g}, max |dE/E| = {worst:.3g}"
+
+
+def _map_info(path: str) -> None:
+    """A map file (orbitsim map): axes, counts by status, indicator ranges, time taken, pixels/s."""
+    import numpy as np
+
+    from orbitsim.stability.driver import read_map
+
+    data = read_map(path)
+    click.echo(f"{path}: stability map of {data.get('scenario_name')} ({data['pixels']} pixels), "
+               f"t = {data['t_start']:g} .. {data['t_end']:g}, dt = {data['dt']:g}, {data['steps']} steps")
+    for name in ("x", "y"):
+        if name in data:
+            axis = data[name]
+            values = axis["values"]
+            unit = f" {axis['unit']}" if axis.get("unit") else ""
+            click.echo(f"  {name}: {axis['body']}.{axis['key']} {values[0]:g} .. {values[-1]:g}{unit}, "
+                       f"{len(values)} values{' (log)' if axis['log'] else ''}")
+    status = data["status"]
+    counts = ", ".join(f"{int(np.sum(status == i))} {n}" for i, n in enumerate(data["status_names"]))
+    click.echo(f"  status: {counts}; {int(np.sum(data['unreliable']))} unreliable (|dE/E| > "
+               f"{data['max_energy_error']:g}); escape distance {data['escape_distance']:g}")
+    click.echo("  indicators (min .. max over finite pixels):")
+    for name, grid in data["indicators"].items():
+        finite = grid[np.isfinite(grid)]
+        shown = f"{finite.min():.6g} .. {finite.max():.6g}" if finite.size else "not computed (NaN)"
+        click.echo(f"    {name}: {shown}")
+    click.echo(f"  time: {data['wall_time_s']:.3g} s wall for {data['pixels_computed']} pixels computed in this "
+               f"run; kernel {data['kernel_time_s']:.3g} s, {data['pixels_per_s']:.4g} pixels/s")
+    click.echo(f"  orbitsim {data.get('provenance_orbitsim_version')}, {data.get('provenance_numba_threads')} "
+               f"threads, {data.get('provenance_cpu_model')}; command: {data.get('command')}")

@@ -30,6 +30,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("demo", "Run the lesson: one orbit, three ways to step time."),
     "bench": ("bench", "Benchmark orbitsim against REBOUND."),
     "batch": ("batch", "Run a parameter sweep on Dask."),
+    "map": ("map", "Make a stability map (MEGNO, survival, max e) over one or two parameters."),
     "resume": ("resume", "Continue an interrupted run from its checkpoint."),
     "cache": ("cache", "Inspect or clear the compiled-kernel cache."),
 }

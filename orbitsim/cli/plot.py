@@ -43,10 +43,13 @@ MAX_LEGEND = 12
               help="Mark the run's events (collisions, encounters, escapes, unresolved steps) as vertical lines "
                    "on the |dE/E| panel, or with --elements on every element panel, one colour per kind; the run "
                    "must have had an events: section. Example: --events")
+@click.option("--indicator", default=None, metavar="NAME",
+              help="For a map file (orbitsim map): the indicator to draw (megno, lyapunov_time, survival_time, "
+                   "max_e, delta_a, energy_error; default: the one map.png shows). Example: --indicator max_e")
 @force_option()
 @reports_errors
 def command(trace: str, output: str | None, elements: bool, resonance: str | None, pair: str | None,
-            view: str, show_events: bool, force: bool) -> None:
+            view: str, show_events: bool, indicator: str | None, force: bool) -> None:
     """Plot TRACE.h5: orbits projected on x-y (or --view xz, yz, 3d), and |dE/E| against time on a log axis.
 
     With --elements: each body's a, e, inc, Omega, omega, f and M against time, about the
@@ -60,8 +63,20 @@ def command(trace: str, output: str | None, elements: bool, resonance: str | Non
       orbitsim plot kozai.h5 --elements
       orbitsim plot disc.h5 --elements --events
       orbitsim plot resonance_capture.h5 --resonance 2:1
+      orbitsim plot js/map.h5 --indicator max_e -o js_max_e.png
+
+    A map file (orbitsim map) is drawn as its map: --indicator picks the grid.
     """
     from orbitsim.io.trace import open_trace_summary
+    from orbitsim.stability.store import is_map_file
+
+    if is_map_file(trace):
+        if elements or resonance or show_events:
+            raise OneLineUsageError(f"{trace} is a map file: --elements, --resonance and --events draw traces")
+        _plot_map(trace, output, indicator, force)
+        return
+    if indicator is not None:
+        raise OneLineUsageError(f"--indicator draws a map file (orbitsim map); {trace} is not one")
 
     stem = Path(trace).stem
     spec = _check_resonance(resonance, pair, elements)
@@ -93,6 +108,33 @@ def command(trace: str, output: str | None, elements: bool, resonance: str | Non
         _draw(_read(trace, summary), summary["attrs"], target, view, events)
     marked = "" if events is None else f" ({_marked(events)})"
     click.echo(f"wrote {target}{marked}")
+
+
+def _plot_map(trace: str, output: str | None, indicator: str | None, force: bool) -> None:
+    """Draw one indicator of a map file (default figure: ``<map>_<indicator>.png``)."""
+    from orbitsim.stability.driver import read_map
+    from orbitsim.stability.figure import INDICATOR_LABELS, draw_map
+
+    data = read_map(trace)
+    name = indicator or "megno"
+    if name not in INDICATOR_LABELS:
+        raise OneLineUsageError(f"--indicator {name!r}: not an indicator; choose one of {', '.join(INDICATOR_LABELS)}")
+    if indicator is None and not np_any_finite(data["indicators"][name]):
+        name = "max_e"  # a map without variational equations has no MEGNO to draw
+    target = Path(output) if output is not None else Path(trace).with_name(f"{Path(trace).stem}_{name}.png")
+    _check_figure_path(str(target), Path(trace).stem)
+    if target.exists() and not force:
+        fail(f"{target}: figure already exists; use --force to overwrite it")
+    if not target.parent.is_dir():
+        fail(f"{target}: directory {target.parent} does not exist")
+    draw_map(target, data, name)
+    click.echo(f"wrote {target} ({name})")
+
+
+def np_any_finite(values: Any) -> bool:
+    import numpy as np
+
+    return bool(np.isfinite(np.asarray(values, dtype=float)).any())
 
 
 def _marked(events: dict[str, Any]) -> str:

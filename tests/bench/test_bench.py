@@ -240,3 +240,26 @@ def test_ratios_pair_the_repeats_of_one_round() -> None:
     rows = {r["key"]: r for r in evaluate_targets({"cases": [*few, orbitsim, rebound]})}
     assert rows["small_n_verlet"]["measured"] == pytest.approx(0.5)
     assert rows["small_n_verlet"]["met"] is True and "pair" in rows["small_n_verlet"]["source"]
+
+
+def test_the_ensemble_kind_reads_and_shrinks_for_quick():
+    from orbitsim.bench.matrix import matrix_from_dict
+    from orbitsim.bench.runner import quick_matrix
+
+    matrix = matrix_from_dict({"groups": [{"name": "ens", "kind": "ensemble", "map_n": 20, "k": 4096}]})
+    params = matrix.groups[0].params
+    assert (params["map_n"], params["years"], params["k"], params["steps"]) == (20, 1e4, 4096, 2000)
+    quick = quick_matrix(matrix).groups[0].params
+    assert (quick["map_n"], quick["years"], quick["k"], quick["steps"]) == (8, 1e3, 512, 200)
+
+
+@pytest.mark.slow
+def test_the_ensemble_probe_times_both_codes():
+    from types import SimpleNamespace
+
+    from orbitsim.bench.ensemble import run_ensemble_probe
+
+    group = SimpleNamespace(params={"map_n": 2, "years": 10.0, "indicator": "max_e", "k": 4, "steps": 10})
+    result = run_ensemble_probe(group)
+    for key in ("rebound_map_s", "orbitsim_map_s", "orbitsim_kernel_s", "ensemble_ns", "single_ns", "rebound_ns"):
+        assert result[key] > 0.0, key

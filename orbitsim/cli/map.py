@@ -1,0 +1,166 @@
+"""``orbitsim map``: a stability map, every pixel a short run, all pixels through the ensemble kernel."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from orbitsim.cli.errors import fail, reports_errors, warn
+from orbitsim.cli.options import threads_option
+
+#: ``orbitsim.stability.plan.INDICATORS``, written out so that the CLI imports only click at start-up
+#: (tests/stability checks that the two agree).
+INDICATOR_CHOICES = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_a", "energy_error")
+
+
+@click.command("map")
+@click.argument("scenario")
+@click.option("--x", "x_spec", required=True, metavar="BODY.KEY=LO:HI:N",
+              help="The x axis: a body's orbital element (a, P, q, e, inc, Omega, omega, pomega, M, f, l, theta) or "
+                   "mass m, N values from LO to HI in the scenario's units and angle setting. The body must be "
+                   "given by elements. Example: --x planet.a=5.8:9.0:20")
+@click.option("--y", "y_spec", default=None, metavar="BODY.KEY=LO:HI:N",
+              help="The y axis, as --x; without it the map is a line over x. Example: --y planet.e=0:0.38:20")
+@click.option("--x-log", is_flag=True, help="Space the x values logarithmically (LO > 0).")
+@click.option("--y-log", is_flag=True, help="Space the y values logarithmically (LO > 0).")
+@click.option("--t-end", required=True, metavar="T",
+              help="End time of every pixel's run, in the scenario's time unit or with a unit. Example: --t-end 1e4")
+@click.option("-o", "--output", "outdir", required=True, type=click.Path(),
+              help="Directory for map.h5 and map.png (created). Example: -o js_map")
+@click.option("--indicator", type=click.Choice(INDICATOR_CHOICES), default="megno", show_default=True,
+              help="The indicator map.png shows; map.h5 holds them all (orbitsim plot map.h5 --indicator NAME).")
+@click.option("--max-energy-error", type=float, default=1e-6, show_default=True,
+              help="Pixels whose |dE/E| at the end exceeds this are marked unreliable (hatched in map.png).")
+@click.option("--escape-distance", type=float, default=None,
+              help="A body farther than this from body 0 has escaped (default: 10 times the largest start "
+                   "distance from body 0 over the map).")
+@click.option("--chunk", type=click.IntRange(min=1), default=256, show_default=True,
+              help="Pixels per kernel call (and per Dask task); finished chunks survive a kill.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of every pixel's initial tangent vector (MEGNO, Lyapunov time): unit norm per body, drawn "
+                   "from N(0, 1) with numpy's PCG64.")
+@click.option("--scheduler", metavar="ADDRESS", default=None,
+              help="Send the chunks to this Dask scheduler (tcp://HOST:PORT) instead of running them here.")
+@click.option("--resume", is_flag=True,
+              help="Finish a killed map in the directory (the same command does the same); refuse if none is there.")
+@click.option("--force", is_flag=True, help="Start over: replace a finished map or another map's parts.")
+@click.option("--quiet", is_flag=True, help="No progress line.")
+@threads_option()
+@reports_errors
+def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: bool, t_end: str, outdir: str,
+            indicator: str, max_energy_error: float, escape_distance: float | None, chunk: int, seed: int,
+            scheduler: str | None, resume: bool, force: bool, quiet: bool, threads: int | None) -> None:
+    """Map SCENARIO's stability over one or two parameters: map.h5 (every indicator) and map.png.
+
+    Each pixel runs SCENARIO with the axes' values from its start to --t-end with the Wisdom-Holman
+    map and its tangent map (variational equations, as REBOUND's WHFast), as one system of an
+    ensemble (orbitsim.ensemble); a pixel stops alone when a body escapes, two bodies with radii
+    collide, or its state diverges. Indicators, all from one pass: megno, lyapunov_time,
+    survival_time, max_e and delta_a (of the --x body's Jacobi orbit), energy_error.
+
+    Finished chunks are kept in DIR/map.parts as they finish: a killed map loses none, and the
+    same command (or --resume) runs only the rest, with bit-identical pixels.
+
+    \b
+    Examples:
+      orbitsim map jupiter_saturn --x planet.a=5.8:9.0:20 --y planet.e=0:0.38:20 --t-end 62830.67 -o js
+      orbitsim plot js/map.h5 --indicator max_e
+    """
+    import numpy as np
+
+    from orbitsim.cli.errors import EXIT_USAGE
+    from orbitsim.io.lock import hold_output
+    from orbitsim.provenance import provenance
+    from orbitsim.scenario import load_scenario
+    from orbitsim.scenario.loader import _locate
+    from orbitsim.scenario.quantities import scenario_time
+    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.stability.axes import MapSpecError, parse_axis
+    from orbitsim.stability.plan import make_plan
+    from orbitsim.stability.store import MapParts
+
+    base = load_scenario(scenario)
+    path, label = _locate(scenario)
+    doc, _ = parse_yaml(path.read_text(encoding="utf-8"), label)
+    try:
+        end = scenario_time(_number_or_text(t_end), base.units, base.G, "--t-end")
+        axes = [parse_axis("--x", x_spec, doc, x_log)]
+        if y_spec is not None:
+            axes.append(parse_axis("--y", y_spec, doc, y_log))
+        elif y_log:
+            raise MapSpecError("--y-log needs --y")
+        if not max_energy_error > 0.0:
+            raise MapSpecError(f"--max-energy-error must be > 0, got {max_energy_error:g}")
+        if escape_distance is not None and not escape_distance > 0.0:
+            raise MapSpecError(f"--escape-distance must be > 0, got {escape_distance:g}")
+        plan = make_plan(base, doc, axes, end, escape_distance, chunk, seed)
+    except MapSpecError as err:
+        fail(str(err), EXIT_USAGE)
+    directory = Path(outdir)
+    if directory.exists() and not directory.is_dir():
+        fail(f"-o {outdir}: exists and is not a directory", EXIT_USAGE)
+    if not directory.parent.is_dir():
+        fail(f"-o {outdir}: directory {directory.parent} does not exist", EXIT_USAGE)
+    directory.mkdir(exist_ok=True)
+    target = directory / "map.h5"
+    from orbitsim.stability.plan import fingerprint
+
+    with hold_output(target):
+        parts = MapParts(directory, fingerprint(plan), plan.n_chunks, plan.chunk)
+        matches = parts.plan_matches()
+        if force:
+            parts.remove()
+            matches = None
+        elif matches is False:
+            fail(f"{directory}: holds the parts of another map (other scenario, axes, t-end or chunk); use another "
+                 "-o, or --force to start over", EXIT_USAGE)
+        elif target.exists() and matches is None:
+            from orbitsim.stability.driver import read_map
+
+            if read_map(target).get("fingerprint") == parts.fingerprint:
+                click.echo(f"{target}: this map is already complete")
+                return
+            fail(f"{target}: already holds another map; use another -o, or --force to replace it", EXIT_USAGE)
+        if resume and matches is None:
+            fail(f"--resume: {directory} holds no unfinished map to resume", EXIT_USAGE)
+        from orbitsim._jit import set_num_threads
+
+        set_num_threads(threads)
+        attrs = {"scenario_yaml": base.to_yaml(), "scenario_sha256": base.sha256,
+                 "scenario_name": base.name, "scenario_source": str(base.source),
+                 "command": " ".join(["orbitsim", *sys.argv[1:]]), "time_unit": _time_unit(base.units, base.G)}
+        attrs.update({f"provenance_{k}": v for k, v in provenance().items()})
+        progress = None if quiet else (lambda line: click.echo(f"\r{line}   ", err=True, nl=False))
+        data = run_map(plan, directory, max_energy_error=max_energy_error, indicator=indicator, attrs=attrs,
+                       scheduler=scheduler, progress=progress)
+    if not quiet:
+        click.echo("", err=True)
+    counts = ", ".join(f"{int(np.sum(data['status'] == i))} {name}" for i, name in enumerate(data["status_names"]))
+    click.echo(f"wrote {target} and {directory / 'map.png'} ({plan.n_pixels} pixels: {counts})")
+    if int(np.sum(data["unreliable"])):
+        warn(f"{int(np.sum(data['unreliable']))} pixels have |dE/E| > {max_energy_error:g} (hatched)")
+
+
+def _number_or_text(text: str) -> float | str:
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def _time_unit(units: str, G: float) -> str:
+    from orbitsim.units import UNIT_SYSTEMS
+
+    system = UNIT_SYSTEMS.get(units)
+    if system is None or G != system.G:
+        return "time units"
+    return str(system.time)
+
+
+def run_map(*args, **kwargs):  # type: ignore[no-untyped-def]
+    """:func:`orbitsim.stability.driver.run_map`, imported when first called (it loads numba)."""
+    from orbitsim.stability.driver import run_map as _run_map
+
+    return _run_map(*args, **kwargs)

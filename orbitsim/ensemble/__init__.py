@@ -1,0 +1,11 @@
+"""Ensembles: K systems of the same N, scheme and dt in one jitted call (issue 29).
+
+:mod:`.status` holds the status codes and indicator columns, :mod:`.kernels` the parallel kernel
+(the Wisdom-Holman step, made of the single-system scheme's own jitted operators) and :mod:`.run`
+the front door, :func:`run_ensemble`.
+"""
+
+from orbitsim.ensemble.run import EnsembleResult, run_ensemble
+from orbitsim.ensemble.status import COLUMN_NAMES, STATUS_NAMES
+
+__all__ = ["COLUMN_NAMES", "STATUS_NAMES", "EnsembleResult", "run_ensemble"]

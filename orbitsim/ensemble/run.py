@@ -1,0 +1,122 @@
+"""The front door of the ensemble kernel: validate K systems, allocate their scratch, run them.
+
+:func:`run_ensemble` checks and coerces its input (the kernel assumes clean arrays), allocates every
+array the kernel writes once per call, and calls :func:`orbitsim.ensemble.kernels.run_ensemble_wh`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from orbitsim.ensemble.status import N_COLUMNS
+
+__all__ = ["EnsembleResult", "run_ensemble"]
+
+
+class EnsembleResult(NamedTuple):
+    """What :func:`run_ensemble` returns, one row per system."""
+
+    status: np.ndarray  #: int64 (K,): codes of :mod:`orbitsim.ensemble.status`
+    steps: np.ndarray  #: int64 (K,): steps taken before the stop
+    indicators: np.ndarray  #: (K, N_COLUMNS): the columns of :mod:`orbitsim.ensemble.status`
+    pos: np.ndarray  #: (K, 3, N): inertial positions at the stop (synchronised)
+    vel: np.ndarray  #: (K, 3, N): inertial velocities at the stop
+
+
+def _as_systems(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    array = np.ascontiguousarray(value, dtype=np.float64)
+    if array.shape != shape:
+        raise ValueError(f"ensemble: {name} has shape {array.shape}, expected {shape}")
+    return array.copy()
+
+
+def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float, dt: float,
+                 n_steps: int, t_start: float = 0.0, escape_distance: float = np.inf,
+                 radii: np.ndarray | None = None, watch: int = 1,
+                 variation: tuple[np.ndarray, np.ndarray] | None = None) -> EnsembleResult:
+    """Run K systems of N bodies with the Wisdom-Holman map (Jacobi coordinates, no corrector).
+
+    Parameters
+    ----------
+    masses : (K, N) array
+        Masses; body 0 of every system is the central body (mass > 0).
+    positions, velocities : (K, 3, N) arrays
+        Inertial start states (not modified).
+    G, dt : float
+        Gravitational constant and step (dt > 0).
+    n_steps : int
+        Steps per system, unless it stops first.
+    t_start : float
+        Time of the start state (the survival times count from it).
+    escape_distance : float
+        A body farther than this from body 0 has escaped (inf: never).
+    radii : (K, N) array, optional
+        Body radii; with them, two bodies closer than the sum of their radii have collided.
+    watch : int
+        The body whose Jacobi a and e the ``max_e`` and ``delta_a`` indicators follow (>= 1).
+    variation : pair of (K, 3, N) arrays, optional
+        Initial tangent vectors (dr, dv): with them every system carries its variational equations
+        (the Wisdom-Holman tangent map) and the ``megno`` and ``lyapunov`` columns are filled.
+
+    Returns
+    -------
+    EnsembleResult
+    """
+    from orbitsim.ensemble.kernels import run_ensemble_wh  # noqa: PLC0415 - lazy: loads numba
+
+    m = np.ascontiguousarray(masses, dtype=np.float64)
+    if m.ndim != 2 or m.shape[1] < 2:
+        raise ValueError(f"ensemble: masses must have shape (K, N) with N >= 2, got {m.shape}")
+    k, n = m.shape
+    if not (m[:, 0] > 0.0).all():
+        raise ValueError("ensemble: wisdom_holman needs a central body: every system's first mass must be > 0")
+    if (m < 0.0).any() or not np.isfinite(m).all():
+        raise ValueError("ensemble: masses must be finite and >= 0")
+    pos = _as_systems("positions", positions, (k, 3, n))
+    vel = _as_systems("velocities", velocities, (k, 3, n))
+    if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+        raise ValueError("ensemble: start states must be finite")
+    if not (dt > 0.0 and np.isfinite(dt)):
+        raise ValueError(f"ensemble: dt must be finite and > 0, got {dt}")
+    if int(n_steps) < 0:
+        raise ValueError(f"ensemble: n_steps must be >= 0, got {n_steps}")
+    if not 1 <= watch < n:
+        raise ValueError(f"ensemble: watch must be a body index in 1..{n - 1}, got {watch}")
+    if not escape_distance > 0.0:
+        raise ValueError(f"ensemble: escape_distance must be > 0, got {escape_distance}")
+    check_collisions = radii is not None
+    r = np.zeros((k, n)) if radii is None else _as_systems("radii", radii, (k, n))
+    interior = np.cumsum(m, axis=1)  # M_i summed left to right, as make_work's mu and jacobi_weights
+    weights = m / interior
+    weights[:, 0] = 1.0
+    mu = G * interior
+    scratch = [np.zeros((k, 3, n)) for _ in range(4)]
+    from orbitsim.physics.kepler import KEPLER_SCRATCH_ROWS  # noqa: PLC0415 - lazy: loads numba
+
+    ks = np.zeros((k, KEPLER_SCRATCH_ROWS, n))
+    kstage = np.zeros((k, n), dtype=np.int64)
+    status = np.zeros(k, dtype=np.int64)
+    steps = np.zeros(k, dtype=np.int64)
+    out = np.zeros((k, N_COLUMNS))
+    escape_r2 = float(escape_distance) ** 2
+    if variation is not None:
+        from orbitsim.ensemble.kernels import run_ensemble_variational  # noqa: PLC0415 - lazy: loads numba
+        from orbitsim.integrators.wisdom_holman.tangent import TANGENT_SCRATCH_ROWS  # noqa: PLC0415 - as above
+        from orbitsim.physics.force_context import make_force  # noqa: PLC0415 - lazy: as above
+
+        dpos = _as_systems("variation positions", variation[0], (k, 3, n))
+        dvel = _as_systems("variation velocities", variation[1], (k, 3, n))
+        if not (np.isfinite(dpos).all() and np.isfinite(dvel).all()) or not (np.abs(dpos).sum(axis=(1, 2)) +
+                                                                             np.abs(dvel).sum(axis=(1, 2)) > 0).all():
+            raise ValueError("ensemble: every system's initial variation must be finite and non-zero")
+        scratch_t = np.zeros((k, TANGENT_SCRATCH_ROWS, 3, n))
+        run_ensemble_variational(pos, vel, dpos, dvel, m, make_force(float(G), 0.0, n), float(dt), float(t_start),
+                                 np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch), weights, mu,
+                                 scratch_t, np.zeros(0), status, steps, out)
+        return EnsembleResult(status, steps, out, pos, vel)
+    run_ensemble_wh(pos, vel, m, float(G), float(dt), float(t_start), np.int64(n_steps), escape_r2, r,
+                    check_collisions, np.int64(watch), *scratch, weights, mu, ks, kstage, np.zeros(0), status,
+                    steps, out)
+    return EnsembleResult(status, steps, out, pos, vel)

@@ -1,0 +1,201 @@
+"""What a map computes: the scenario, its axes, the time span and the start state of every pixel.
+
+:func:`make_plan` checks, once and before anything is written, that the ensemble kernel can run the
+scenario (the Wisdom-Holman map in Jacobi coordinates without correctors, forces or softening) and
+that every pixel's start state is valid; a :class:`MapPlan` then gives any chunk of pixels its
+start states (:func:`chunk_states`) and runs it (:func:`run_chunk`) wherever it is sent. The plan's
+:func:`fingerprint` names what the pixels depend on, so a resumed map only reuses chunks of the
+same map.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from orbitsim.stability.axes import Axis, MapSpecError
+
+__all__ = ["INDICATORS", "ChunkResult", "MapPlan", "chunk_states", "fingerprint", "make_plan", "run_chunk"]
+
+#: The indicators a map computes, all in one pass (the ``--indicator`` names).
+INDICATORS = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_a", "energy_error")
+#: Default escape distance: this many times the largest start distance from body 0 over the map.
+ESCAPE_FACTOR = 10.0
+
+
+class MapPlan(NamedTuple):
+    """Everything a chunk needs (plain data: it travels to a Dask worker as it is)."""
+
+    doc: dict[str, Any]  #: the scenario document the pixels edit
+    names: tuple[str, ...]
+    axes: tuple[Axis, ...]  #: x, then y if given
+    G: float
+    dt: float
+    t_start: float
+    n_steps: int
+    escape_distance: float
+    watch: int  #: the body whose a and e the indicators follow (the x axis's body)
+    radii: np.ndarray | None  #: (N,) or None: no collision check
+    barycentric: bool
+    chunk: int  #: pixels per chunk
+    seed: int  #: seed of every pixel's initial variation (orbitsim.chaos.megno.random_initial_variation)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx) of the grids; ny = 1 for a one-axis map."""
+        nx = len(self.axes[0].values)
+        return (len(self.axes[1].values) if len(self.axes) > 1 else 1, nx)
+
+    @property
+    def n_pixels(self) -> int:
+        ny, nx = self.shape
+        return ny * nx
+
+    @property
+    def n_chunks(self) -> int:
+        return -(-self.n_pixels // self.chunk)
+
+
+class ChunkResult(NamedTuple):
+    """One chunk's pixels, in pixel order (row-major over (y, x))."""
+
+    index: int
+    status: np.ndarray  #: int64 (P,)
+    stop_time: np.ndarray  #: (P,)
+    indicators: np.ndarray  #: (P, len(INDICATORS))
+    seconds: float  #: wall time of the kernel call
+
+
+def _pixel_values(plan: MapPlan, pixel: int) -> list[float]:
+    _ny, nx = plan.shape
+    iy, ix = divmod(pixel, nx)
+    values = [float(plan.axes[0].values[ix])]
+    if len(plan.axes) > 1:
+        values.append(float(plan.axes[1].values[iy]))
+    return values
+
+
+def pixel_state(plan: MapPlan, pixel: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Masses (N,), positions and velocities (3, N) of one pixel, read as the scenario reads its bodies."""
+    from orbitsim.scenario.bodies import read_bodies, shift_to_barycentre  # noqa: PLC0415 - lazy: loads numba
+    from orbitsim.scenario.fields import Fields  # noqa: PLC0415 - lazy: as above
+    from orbitsim.scenario.loader import TOP_KEYS  # noqa: PLC0415 - lazy: as above
+
+    doc = dict(plan.doc)
+    bodies = [dict(b) if isinstance(b, dict) else b for b in doc["bodies"]]
+    for axis, value in zip(plan.axes, _pixel_values(plan, pixel), strict=True):
+        axis.apply(bodies[axis.index], value)
+    doc["bodies"] = bodies
+    units = str(doc.get("units", "nbody")).lower()
+    read = read_bodies(Fields(doc, "", TOP_KEYS, "scenario"), plan.G, units)
+    m, x, v = read.arrays()
+    if plan.barycentric:
+        x, v = shift_to_barycentre(m, x, v)
+    return m, np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
+
+
+def chunk_states(plan: MapPlan, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(P, N) masses and (P, 3, N) positions and velocities of chunk ``index``'s pixels."""
+    first = index * plan.chunk
+    pixels = range(first, min(first + plan.chunk, plan.n_pixels))
+    states = [pixel_state(plan, p) for p in pixels]
+    return (np.stack([s[0] for s in states]), np.stack([s[1] for s in states]), np.stack([s[2] for s in states]))
+
+
+def run_chunk(plan: MapPlan, index: int) -> ChunkResult:
+    """Run chunk ``index`` of the map in one ensemble call (any process: a Dask worker too)."""
+    import time  # noqa: PLC0415 - lazy: kept beside its one use
+
+    from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: as above
+    from orbitsim.ensemble import run_ensemble  # noqa: PLC0415 - lazy: loads numba
+    from orbitsim.ensemble.status import (  # noqa: PLC0415
+        DELTA_A,
+        ENERGY_ERROR,
+        LYAPUNOV,
+        MAX_E,
+        MEGNO,
+        SURVIVAL_TIME,
+    )
+
+    m, x, v = chunk_states(plan, index)
+    radii = None if plan.radii is None else np.tile(plan.radii, (m.shape[0], 1))
+    dpos, dvel = random_initial_variation(m.shape[1], plan.seed)
+    variation = (np.tile(dpos, (m.shape[0], 1, 1)), np.tile(dvel, (m.shape[0], 1, 1)))
+    started = time.perf_counter()
+    result = run_ensemble(m, x, v, G=plan.G, dt=plan.dt, n_steps=plan.n_steps, t_start=plan.t_start,
+                          escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation)
+    seconds = time.perf_counter() - started
+    cols = result.indicators
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lyapunov_time = np.where(cols[:, LYAPUNOV] > 0.0, 1.0 / cols[:, LYAPUNOV], np.inf)
+    lyapunov_time = np.where(np.isnan(cols[:, LYAPUNOV]), np.nan, lyapunov_time)
+    table = np.column_stack([cols[:, MEGNO], lyapunov_time, cols[:, SURVIVAL_TIME], cols[:, MAX_E],
+                             cols[:, DELTA_A], cols[:, ENERGY_ERROR]])
+    return ChunkResult(index, result.status, cols[:, SURVIVAL_TIME].copy(), table, seconds)
+
+
+def fingerprint(plan: MapPlan) -> str:
+    """SHA-256 of everything the pixels' bits depend on (not the chunk size: a pixel's bits do not)."""
+    record = {
+        "doc": plan.doc, "axes": [(a.body, a.key, a.values.tolist(), a.log) for a in plan.axes], "G": plan.G,
+        "dt": plan.dt, "t_start": plan.t_start, "n_steps": plan.n_steps, "escape": plan.escape_distance,
+        "watch": plan.watch, "radii": None if plan.radii is None else plan.radii.tolist(),
+        "barycentric": plan.barycentric, "seed": plan.seed,
+    }
+    return hashlib.sha256(json.dumps(record, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float,
+              escape_distance: float | None, chunk: int, seed: int = 0) -> MapPlan:
+    """Check that the ensemble can run ``scenario`` over ``axes`` up to ``t_end``; raise :class:`MapSpecError`.
+
+    Every pixel's start state is built here once, so a pixel the scenario reader rejects (``e = 1.2``
+    with ``a > 0``) is reported before anything is written.
+    """
+    from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 - lazy: loads numba
+    from orbitsim.scenario.errors import ScenarioError  # noqa: PLC0415 - lazy: as above
+
+    name = canonical_name(scenario.integrator)
+    if name != "wisdom_holman":
+        raise MapSpecError(f"integrator {name!r}: a map runs the ensemble kernel, which has the Wisdom-Holman map "
+                           "(integrator: wisdom_holman) only")
+    settings = dict(scenario.integrator_settings or {})
+    if settings.get("coordinates", "jacobi") != "jacobi" or int(settings.get("corrector", 0) or 0) != 0:
+        raise MapSpecError("integrator settings: the ensemble's Wisdom-Holman map is Jacobi coordinates without "
+                           "a corrector; remove coordinates/corrector from the scenario")
+    if scenario.softening != 0.0:
+        raise MapSpecError("softening: the ensemble kernel integrates unsoftened gravity; set softening: 0")
+    if scenario.forces:
+        raise MapSpecError("forces: the ensemble kernel integrates gravity alone; remove the forces section")
+    if scenario.dt <= 0.0:
+        raise MapSpecError(f"dt = {scenario.dt:g}: a map steps forward in time (dt > 0)")
+    if not t_end > scenario.t_start:
+        raise MapSpecError(f"--t-end {t_end:g}: must be after the scenario's t_start ({scenario.t_start:g})")
+    n_steps = math.ceil((t_end - scenario.t_start) / scenario.dt - 1e-9)  # 1e-9: a whole number of steps
+    if len(axes) > 1 and axes[0].body == axes[1].body and axes[0].key == axes[1].key:
+        raise MapSpecError(f"--x and --y both vary {axes[0].body}.{axes[0].key}")
+    watch = axes[0].index
+    if watch == 0:
+        raise MapSpecError(f"--x {axes[0].body}: the central body has no orbit to follow; vary a planet")
+    plan = MapPlan(copy.deepcopy(doc), tuple(scenario.names), tuple(axes), float(scenario.G), float(scenario.dt),
+                   float(scenario.t_start), n_steps, math.inf, watch,
+                   None if scenario.radii is None else np.asarray(scenario.radii, dtype=np.float64),
+                   scenario.frame == "barycentric", int(chunk), int(seed))
+    if len(plan.names) != len(doc["bodies"]):
+        raise MapSpecError("a map needs every body in the scenario's bodies list (no ephemeris or generator)")
+    farthest = 0.0
+    for pixel in range(plan.n_pixels):
+        try:
+            _, x, _ = pixel_state(plan, pixel)
+        except ScenarioError as err:
+            values = ", ".join(f"{a.body}.{a.key}={v:g}" for a, v in zip(axes, _pixel_values(plan, pixel),
+                                                                         strict=True))
+            raise MapSpecError(f"pixel {values}: {err.reason} (key {err.key})") from None
+        farthest = max(farthest, float(np.max(np.sqrt(np.sum((x - x[:, :1]) ** 2, axis=0)))))
+    escape = ESCAPE_FACTOR * farthest if escape_distance is None else float(escape_distance)
+    return plan._replace(escape_distance=escape)

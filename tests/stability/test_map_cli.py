@@ -1,0 +1,217 @@
+"""``orbitsim map``: the files it writes, every refusal (one line, exit 2, nothing written), a full disk,
+and a map killed by SIGKILL that the same command finishes with bit-identical pixels."""
+
+from __future__ import annotations
+
+import errno
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from orbitsim.cli.main import cli
+from orbitsim.cli.map import INDICATOR_CHOICES
+from orbitsim.stability.plan import INDICATORS
+
+SCENARIO = """\
+name: tp
+units: nbody
+integrator: wisdom_holman
+dt: 0.5
+t_end: 100
+bodies:
+  - {name: sun, m: 1.0, x: [0, 0, 0], v: [0, 0, 0]}
+  - {name: jupiter, m: 0.000954791915, primary: sun, a: 5.2, e: 0.048, M: 10}
+  - {name: saturn, m: 0.000285885672, primary: sun, a: 9.54, e: 0.054, M: 200, inc: 2.5}
+  - {name: planet, m: 0, primary: sun, a: 7.0, e: 0.1, M: 30}
+  - {name: probe, m: 0, x: [20, 0, 0], v: [0, 0.2, 0]}
+"""
+AXES = ["--x", "planet.a=7.0:8.0:3", "--y", "planet.e=0:0.3:2", "--t-end", "40", "--indicator", "max_e", "--quiet"]
+
+
+@pytest.fixture
+def scenario(tmp_path: Path) -> Path:
+    path = tmp_path / "tp.yaml"
+    path.write_text(SCENARIO, encoding="utf-8")
+    return path
+
+
+def _map(args: list[str]) -> tuple[int, str, str]:
+    result = CliRunner().invoke(cli, ["map", *args])
+    return result.exit_code, result.stdout, result.stderr
+
+
+def _grids(path: Path) -> dict[str, np.ndarray]:
+    with h5py.File(path, "r") as f:
+        out = {name: f["indicators"][name][()] for name in f["indicators"]}
+        out["status"] = f["status"][()]
+        out["stop_time"] = f["stop_time"][()]
+        return out
+
+
+def test_cli_lists_the_indicators_the_plan_computes():
+    assert INDICATOR_CHOICES == INDICATORS
+
+
+def test_map_writes_its_file_and_figure_and_info_and_plot_read_them(scenario, tmp_path):
+    out = tmp_path / "m"
+    code, stdout, stderr = _map([str(scenario), *AXES, "-o", str(out)])
+    assert code == 0, stderr
+    assert "6 pixels: 6 complete" in stdout
+    assert (out / "map.png").stat().st_size > 0
+    assert not (out / "map.parts").exists()
+    grids = _grids(out / "map.h5")
+    assert grids["status"].shape == (2, 3)
+    assert np.all(grids["survival_time"] == 40.0)
+    assert np.all(grids["max_e"][1] > grids["max_e"][0])  # e0 = 0.3 stays above e0 = 0 over 40 time units
+    assert np.all(np.isfinite(grids["megno"])) and np.all(grids["megno"] > 0.0)  # MEGNO from the tangent map
+    assert np.all(np.isfinite(grids["lyapunov_time"]))
+    info = CliRunner().invoke(cli, ["info", str(out / "map.h5")])
+    assert info.exit_code == 0
+    assert "6 complete, 0 escaped" in info.stdout and "max_e:" in info.stdout and "pixels/s" in info.stdout
+    plot = CliRunner().invoke(cli, ["plot", str(out / "map.h5"), "--indicator", "delta_a"])
+    assert plot.exit_code == 0, plot.stderr
+    assert (out / "map_delta_a.png").exists()
+    again = _map([str(scenario), *AXES, "-o", str(out)])
+    assert again[0] == 0 and "already complete" in again[1]
+    other = _map([str(scenario), *AXES[:-4], "41", "--indicator", "max_e", "-o", str(out)])
+    assert other[0] == 2 and "another map" in other[2]
+
+
+@pytest.mark.parametrize(("x_spec", "message"), [
+    ("nobody.a=1:2:3", "no body 'nobody'"),
+    ("planet.zz=1:2:3", "unknown key 'zz'"),
+    ("planet.a=2:1:3", "LO must be below HI"),
+    ("planet.a=1:2:1", "N must be at least 2"),
+    ("planet.a=1:2", "expected BODY.KEY=LO:HI:N"),
+    ("probe.a=1:2:3", "Cartesian state"),
+    ("sun.m=0.5:1:2", "central body"),
+    ("planet.e=0.5:1.5:3", "pixel planet.e=1: a parabolic orbit"),
+])
+def test_a_bad_axis_is_one_line_exit_2_and_writes_nothing(scenario, tmp_path, x_spec, message):
+    out = tmp_path / "m"
+    code, _, stderr = _map([str(scenario), "--x", x_spec, "--t-end", "10", "--indicator", "max_e", "-o", str(out)])
+    assert code == 2
+    assert stderr.count("\n") == 1 and stderr.startswith("orbitsim: error: ") and message in stderr, stderr
+    assert not out.exists()
+
+
+def test_a_scheme_the_ensemble_lacks_is_refused(tmp_path):
+    path = tmp_path / "v.yaml"
+    path.write_text(SCENARIO.replace("wisdom_holman", "verlet"), encoding="utf-8")
+    code, _, stderr = _map([str(path), "--x", "planet.a=6:8:2", "--t-end", "10", "-o", str(tmp_path / "m")])
+    assert code == 2 and "wisdom_holman" in stderr and stderr.count("\n") == 1
+    assert not (tmp_path / "m").exists()
+
+
+def test_resume_without_a_killed_map_is_refused(scenario, tmp_path):
+    code, _, stderr = _map([str(scenario), *AXES, "--resume", "-o", str(tmp_path / "m")])
+    assert code == 2 and "no unfinished map" in stderr
+
+
+def test_a_full_disk_is_one_line_and_keeps_the_finished_chunks(scenario, tmp_path, monkeypatch):
+    import orbitsim.stability.store as store
+
+    real_savez = np.savez
+    calls = []
+
+    def savez(file, **arrays):
+        calls.append(1)
+        if len(calls) == 2:  # the second chunk finds the disk full
+            raise OSError(errno.ENOSPC, "No space left on device", str(file.name))
+        return real_savez(file, **arrays)
+
+    monkeypatch.setattr(store.np, "savez", savez)
+    out = tmp_path / "m"
+    code, _, stderr = _map([str(scenario), *AXES, "--chunk", "2", "-o", str(out)])
+    assert code == 4, stderr  # orbitsim's exit code for an I/O error (orbitsim.cli.errors)
+    assert stderr.count("\n") == 1 and "No space left on device" in stderr
+    assert not (out / "map.h5").exists()
+    parts = sorted(p.name for p in (out / "map.parts").iterdir())
+    assert parts == ["chunk-000000.npz", "plan.json"]  # the finished chunk kept, no temporary left
+    monkeypatch.setattr(store.np, "savez", real_savez)
+    code, _, stderr = _map([str(scenario), *AXES, "--chunk", "2", "-o", str(out)])
+    assert code == 0, stderr
+    straight = tmp_path / "s"
+    assert _map([str(scenario), *AXES, "-o", str(straight)])[0] == 0
+    a, b = _grids(out / "map.h5"), _grids(straight / "map.h5")
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
+
+
+def test_a_map_killed_mid_way_is_finished_bit_identically(scenario, tmp_path):
+    axes = ["--x", "planet.a=5.8:9.0:4", "--y", "planet.e=0:0.3:4", "--t-end", "4000", "--indicator", "max_e",
+            "--quiet", "--threads", "1"]
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "orbitsim", "map", str(scenario), *axes, "--chunk", "1", "-o", str(out)]
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if out.joinpath("map.parts").is_dir() and len(list(out.joinpath("map.parts").glob("chunk-*.npz"))) >= 3:
+            break
+        time.sleep(0.005)
+    assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    kept = sorted((out / "map.parts").glob("chunk-*.npz"))
+    assert 3 <= len(kept) < 16
+    assert not (out / "map.h5").exists()
+    done = subprocess.run([*command[:-2], "--resume", "-o", str(out)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    straight = tmp_path / "straight"
+    subprocess.run([*command[:-4], "--chunk", "5", "-o", str(straight)], check=True, capture_output=True, timeout=600)
+    a, b = _grids(out / "map.h5"), _grids(straight / "map.h5")
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
+
+
+@pytest.mark.slow
+def test_a_map_on_dask_workers_has_the_bits_of_a_local_one(scenario, tmp_path):
+    from orbitsim.batch.cluster import ClusterPlan, open_client
+
+    local = tmp_path / "local"
+    assert _map([str(scenario), *AXES, "-o", str(local)])[0] == 0
+    with open_client(None, ClusterPlan(workers=2, threads=1)) as client:
+        address = client.scheduler.address
+        code, _, stderr = _map([str(scenario), *AXES, "--chunk", "1", "--scheduler", address, "-o",
+                                str(tmp_path / "dask")])
+    assert code == 0, stderr
+    a, b = _grids(local / "map.h5"), _grids(tmp_path / "dask" / "map.h5")
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
+
+
+@pytest.mark.slow
+def test_a_killed_dask_worker_loses_no_pixel(scenario, tmp_path):
+    import threading
+
+    from orbitsim.batch.cluster import ClusterPlan, open_client
+
+    axes = ["--x", "planet.a=7.0:8.0:4", "--y", "planet.e=0:0.3:3", "--t-end", "20000", "--quiet"]
+    local = tmp_path / "local"
+    assert _map([str(scenario), *axes, "-o", str(local)])[0] == 0
+    out = tmp_path / "dask"
+    with open_client(None, ClusterPlan(workers=2, threads=1)) as client:
+        pids = list(client.run(os.getpid).values())
+        outcome = {}
+        runner = threading.Thread(target=lambda: outcome.update(result=_map(
+            [str(scenario), *axes, "--chunk", "1", "--scheduler", client.scheduler.address, "-o", str(out)])))
+        runner.start()
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and not list((out / "map.parts").glob("chunk-*.npz")):
+            time.sleep(0.01)
+        os.kill(pids[0], signal.SIGKILL)  # a worker dies mid-map; its nanny starts another
+        assert not (out / "map.h5").exists()  # it died with chunks still to run (both workers were busy)
+        runner.join(600)
+    code, _, stderr = outcome["result"]
+    assert code == 0, stderr
+    a, b = _grids(local / "map.h5"), _grids(out / "map.h5")
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
