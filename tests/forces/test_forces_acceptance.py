@@ -124,6 +124,7 @@ def secular_rates(scenario: Scenario) -> tuple[float, float]:
     return -1.5 * k * math.cos(inc), 0.75 * k * (5.0 * math.cos(inc) ** 2 - 1.0)
 
 
+@pytest.mark.slow  # IAS15 with harmonics: a loop no other default test compiles (tests/data/test_configs.py)
 def test_j2_satellite_precesses_at_the_secular_rates() -> None:
     """Omega_dot = -(3/2) n J2 (R/a)^2 cos i / (1-e^2)^2, omega_dot = (3/4) n J2 (R/a)^2 (5 cos^2 i - 1)
     / (1-e^2)^2 (Kaula 1966), within 1%, from straight-line fits over the bundled 10 days."""

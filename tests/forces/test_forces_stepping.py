@@ -131,10 +131,16 @@ def _final_error(integrator: str, forces, dt: float, t_end: float, reference: np
     return float(np.max(np.abs(sim.pos - reference)))
 
 
+#: rk4 with gr_potential and with gr_full each compile rk4's loop (and, for gr_full, IAS15's
+#: reference) for a force set no other default test uses: they run in `make test-slow`. rk4's
+#: order with a force stays in `make test` through gr (velocity-dependent, so every stage's force
+#: is exercised), gr_full's run through test_forced_runs_same_bits_however_cut[rk4].
 @pytest.mark.parametrize(("integrator", "order", "force_id"), [
     ("semi_implicit_euler", 1, GR_POTENTIAL), ("verlet", 2, GR_POTENTIAL), ("leapfrog", 2, GR_POTENTIAL),
-    ("leapfrog4", 4, GR_POTENTIAL), ("wisdom_holman", 2, GR_POTENTIAL), ("rk4", 4, GR_POTENTIAL),
-    ("euler", 1, GR), ("verlet", 2, GR), ("leapfrog", 2, GR), ("rk4", 4, GR), ("rk4", 4, GR_FULL),
+    ("leapfrog4", 4, GR_POTENTIAL), ("wisdom_holman", 2, GR_POTENTIAL),
+    pytest.param("rk4", 4, GR_POTENTIAL, marks=pytest.mark.slow),
+    ("euler", 1, GR), ("verlet", 2, GR), ("leapfrog", 2, GR), ("rk4", 4, GR),
+    pytest.param("rk4", 4, GR_FULL, marks=pytest.mark.slow),
 ])
 def test_convergence_order_with_forces(integrator, order, force_id) -> None:
     forces = make_forces(3, [(force_id, 0 if force_id != GR_FULL else -1, {P_C: C_STRONG}, None)])
