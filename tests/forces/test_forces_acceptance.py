@@ -196,6 +196,8 @@ def test_step_for_step_with_reboundx(integrator: str, scheme: str, forces: Force
     assert error < 1e-10  # the issue's bound (measured 5e-14 and 1e-14)
 
 
+@pytest.mark.slow  # IAS15's loop with migration, compiled by no other default test; migration against
+# REBOUNDx stays in `make test` with Wisdom-Holman (tests/compare/test_compare_forces.py)
 def test_migration_follows_reboundx_under_ias15() -> None:
     """resonance_capture's migration and damping (Jacobi, as REBOUNDx's default) with IAS15 in both
     codes, sampled every 10 time units to t = 300 (~50 inner orbits, through the approach)."""

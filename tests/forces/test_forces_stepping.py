@@ -153,7 +153,14 @@ def test_convergence_order_with_forces(integrator, order, force_id) -> None:
     assert abs(slope - order) < 0.35, (slope, errors)
 
 
-@pytest.mark.parametrize("integrator", ["verlet", "wisdom_holman", "ias15", "rk4"])
+#: verlet's loop with gr_potential + gr is compiled only by its cases of the two tests below: they run
+#: in `make test-slow`. The one sample loop and the force hooks they test are the same for every
+#: fixed-step scheme, and `make test` keeps them through Wisdom-Holman (fixed step), IAS15
+#: (adaptive) and, here, rk4 (gr_full).
+SHARED_LOOP_SLOW = pytest.param("verlet", marks=pytest.mark.slow)
+
+
+@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", "ias15", "rk4"])
 def test_forced_runs_same_bits_however_cut(integrator) -> None:
     forces = make_forces(3, [(GR_POTENTIAL, 0, {P_C: C_STRONG}, None),
                              (GR if integrator != "rk4" else GR_FULL, 0 if integrator != "rk4" else -1,
@@ -188,7 +195,7 @@ def test_forced_runs_do_not_depend_on_threads() -> None:
     assert np.array_equal(states[0][0], states[1][0]) and np.array_equal(states[0][1], states[1][1])
 
 
-@pytest.mark.parametrize("integrator", ["verlet", "wisdom_holman", "ias15"])
+@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", "ias15"])
 def test_checkpoint_resume_with_forces_is_bit_identical(integrator) -> None:
     from orbitsim.checkpoint.state import capture_state, restore_state
 
@@ -266,7 +273,11 @@ TRIO_WITH_FORCES = {
 }
 
 
-@pytest.mark.parametrize("name", ["leapfrog", "wisdom_holman", "ias15"])
+#: Each scheme's loop with this force set is compiled by no other test, so `make test` keeps one
+#: (Wisdom-Holman); leapfrog and IAS15 run in `make test-slow`. IAS15's resume with forces stays in
+#: `make test` at the Simulation level (test_checkpoint_resume_with_forces_is_bit_identical[ias15]).
+@pytest.mark.parametrize("name", [pytest.param("leapfrog", marks=pytest.mark.slow), "wisdom_holman",
+                                  pytest.param("ias15", marks=pytest.mark.slow)])
 def test_scenario_run_with_forces_resumes_to_the_same_bits(tmp_path, name) -> None:
     """orbitsim run with a forces: list, stopped and resumed from its checkpoint: the same trace as
     one uninterrupted run, with the forces in the trace's attributes."""
