@@ -128,14 +128,37 @@ FORCE_SETS = {
     "migration": _migration(),
     "gr+harmonics": make_forces(3, [(GR, 0, {P_C: 100.0}, None),
                                     (HARMONICS, 0, {P_J2: 1e-2, P_R_EQ: 0.1, P_SPIN + 2: 1.0}, None)]),
+    "gr_potential+gr": make_forces(3, [(GR_POTENTIAL, 0, {P_C: 100.0}, None), (GR, 0, {P_C: 100.0}, None)]),
 }
 
+PAIRED_SCHEMES = [("leapfrog", "leapfrog", {}), ("leapfrog8", "leapfrog:8", {}), ("wisdom_holman", "whfast", {}),
+                  ("wisdom_holman", "whfast", {"coordinates": "democratic_heliocentric"})]
 
-@pytest.mark.parametrize("forces", list(FORCE_SETS))
-@pytest.mark.parametrize(("integrator", "scheme", "settings"), [
-    ("leapfrog", "leapfrog", {}), ("leapfrog8", "leapfrog:8", {}), ("wisdom_holman", "whfast", {}),
-    ("wisdom_holman", "whfast", {"coordinates": "democratic_heliocentric"}),
-])
+#: The (scheme, force set) pairs `make test` runs. Each pair compiles the scheme's loop for that
+#: set of force types (a Numba specialisation of 10-40 s on a cold cache), so the default suite
+#: keeps the pairs whose loops the suite compiles anyway and one of each arrangement: gr
+#: (velocity-dependent, as operators) and gr_potential (position-only, kicked) with every scheme;
+#: migration (velocity-dependent, Jacobi) and both kinds at once with Wisdom-Holman (the loops of
+#: resonance_capture and tests/forces/test_forces_stepping.py). The other pairs, the same
+#: arrangements on the leapfrogs, run in `make test-slow`.
+FAST_PAIRS = {("leapfrog", "gr"), ("wisdom_holman", "gr"), ("leapfrog", "gr_potential"),
+              ("leapfrog8", "gr_potential"), ("wisdom_holman", "gr_potential"), ("wisdom_holman", "migration"),
+              ("wisdom_holman", "gr_potential+gr")}
+
+
+def _paired_cases() -> list:
+    cases = []
+    for forces in FORCE_SETS:
+        for integrator, scheme, settings in PAIRED_SCHEMES:
+            if forces == "gr_potential+gr" and integrator != "wisdom_holman":
+                continue  # a mixed set with the leapfrogs is gr+harmonics' case
+            marks = () if (integrator, forces) in FAST_PAIRS else pytest.mark.slow
+            label = f"{forces}-{integrator}" + ("-" + settings["coordinates"] if settings else "")
+            cases.append(pytest.param(forces, integrator, scheme, settings, marks=marks, id=label))
+    return cases
+
+
+@pytest.mark.parametrize(("forces", "integrator", "scheme", "settings"), _paired_cases())
 def test_step_for_step_with_the_paired_arrangement(forces: str, integrator: str, scheme: str,
                                                    settings: dict[str, str]) -> None:
     """The arrangement attach_rebound_forces makes, 1000 steps: position-only forces kicked,

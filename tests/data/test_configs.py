@@ -67,7 +67,15 @@ def test_plummer_16k_keeps_the_trace_small() -> None:
     assert s.n_bodies == 16384 and not s.record_positions and s.steps <= 10
 
 
-@pytest.mark.parametrize("name", BUNDLED)
+#: j2_satellite is the one bundled scenario whose loop (IAS15 with harmonics, 25-40 s to compile
+#: on a cold cache) nothing else in `make test` compiles; it runs a few steps in `make test-slow`,
+#: beside its precession test (tests/forces/test_forces_acceptance.py). Harmonics stay in a
+#: default run through the leapfrog cases of tests/forces/.
+SLOW_TO_COMPILE = {"j2_satellite"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_TO_COMPILE else n
+                                  for n in BUNDLED])
 def test_bundled_scenario_runs_a_few_steps(name: str, tmp_path: Path) -> None:
     s = load_scenario(name)
     if s.adaptive:  # its grid is the output intervals: the first few of them

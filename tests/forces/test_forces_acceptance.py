@@ -124,6 +124,7 @@ def secular_rates(scenario: Scenario) -> tuple[float, float]:
     return -1.5 * k * math.cos(inc), 0.75 * k * (5.0 * math.cos(inc) ** 2 - 1.0)
 
 
+@pytest.mark.slow  # IAS15 with harmonics: a loop no other default test compiles (tests/data/test_configs.py)
 def test_j2_satellite_precesses_at_the_secular_rates() -> None:
     """Omega_dot = -(3/2) n J2 (R/a)^2 cos i / (1-e^2)^2, omega_dot = (3/4) n J2 (R/a)^2 (5 cos^2 i - 1)
     / (1-e^2)^2 (Kaula 1966), within 1%, from straight-line fits over the bundled 10 days."""
@@ -195,6 +196,8 @@ def test_step_for_step_with_reboundx(integrator: str, scheme: str, forces: Force
     assert error < 1e-10  # the issue's bound (measured 5e-14 and 1e-14)
 
 
+@pytest.mark.slow  # IAS15's loop with migration, compiled by no other default test; migration against
+# REBOUNDx stays in `make test` with Wisdom-Holman (tests/compare/test_compare_forces.py)
 def test_migration_follows_reboundx_under_ias15() -> None:
     """resonance_capture's migration and damping (Jacobi, as REBOUNDx's default) with IAS15 in both
     codes, sampled every 10 time units to t = 300 (~50 inner orbits, through the approach)."""

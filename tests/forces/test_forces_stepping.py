@@ -131,10 +131,16 @@ def _final_error(integrator: str, forces, dt: float, t_end: float, reference: np
     return float(np.max(np.abs(sim.pos - reference)))
 
 
+#: rk4 with gr_potential and with gr_full each compile rk4's loop (and, for gr_full, IAS15's
+#: reference) for a force set no other default test uses: they run in `make test-slow`. rk4's
+#: order with a force stays in `make test` through gr (velocity-dependent, so every stage's force
+#: is exercised), gr_full's run through test_forced_runs_same_bits_however_cut[rk4].
 @pytest.mark.parametrize(("integrator", "order", "force_id"), [
     ("semi_implicit_euler", 1, GR_POTENTIAL), ("verlet", 2, GR_POTENTIAL), ("leapfrog", 2, GR_POTENTIAL),
-    ("leapfrog4", 4, GR_POTENTIAL), ("wisdom_holman", 2, GR_POTENTIAL), ("rk4", 4, GR_POTENTIAL),
-    ("euler", 1, GR), ("verlet", 2, GR), ("leapfrog", 2, GR), ("rk4", 4, GR), ("rk4", 4, GR_FULL),
+    ("leapfrog4", 4, GR_POTENTIAL), ("wisdom_holman", 2, GR_POTENTIAL),
+    pytest.param("rk4", 4, GR_POTENTIAL, marks=pytest.mark.slow),
+    ("euler", 1, GR), ("verlet", 2, GR), ("leapfrog", 2, GR), ("rk4", 4, GR),
+    pytest.param("rk4", 4, GR_FULL, marks=pytest.mark.slow),
 ])
 def test_convergence_order_with_forces(integrator, order, force_id) -> None:
     forces = make_forces(3, [(force_id, 0 if force_id != GR_FULL else -1, {P_C: C_STRONG}, None)])
@@ -147,7 +153,14 @@ def test_convergence_order_with_forces(integrator, order, force_id) -> None:
     assert abs(slope - order) < 0.35, (slope, errors)
 
 
-@pytest.mark.parametrize("integrator", ["verlet", "wisdom_holman", "ias15", "rk4"])
+#: verlet's loop with gr_potential + gr is compiled only by its cases of the two tests below: they run
+#: in `make test-slow`. The one sample loop and the force hooks they test are the same for every
+#: fixed-step scheme, and `make test` keeps them through Wisdom-Holman (fixed step), IAS15
+#: (adaptive) and, here, rk4 (gr_full).
+SHARED_LOOP_SLOW = pytest.param("verlet", marks=pytest.mark.slow)
+
+
+@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", "ias15", "rk4"])
 def test_forced_runs_same_bits_however_cut(integrator) -> None:
     forces = make_forces(3, [(GR_POTENTIAL, 0, {P_C: C_STRONG}, None),
                              (GR if integrator != "rk4" else GR_FULL, 0 if integrator != "rk4" else -1,
@@ -182,7 +195,7 @@ def test_forced_runs_do_not_depend_on_threads() -> None:
     assert np.array_equal(states[0][0], states[1][0]) and np.array_equal(states[0][1], states[1][1])
 
 
-@pytest.mark.parametrize("integrator", ["verlet", "wisdom_holman", "ias15"])
+@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", "ias15"])
 def test_checkpoint_resume_with_forces_is_bit_identical(integrator) -> None:
     from orbitsim.checkpoint.state import capture_state, restore_state
 
@@ -260,7 +273,11 @@ TRIO_WITH_FORCES = {
 }
 
 
-@pytest.mark.parametrize("name", ["leapfrog", "wisdom_holman", "ias15"])
+#: Each scheme's loop with this force set is compiled by no other test, so `make test` keeps one
+#: (Wisdom-Holman); leapfrog and IAS15 run in `make test-slow`. IAS15's resume with forces stays in
+#: `make test` at the Simulation level (test_checkpoint_resume_with_forces_is_bit_identical[ias15]).
+@pytest.mark.parametrize("name", [pytest.param("leapfrog", marks=pytest.mark.slow), "wisdom_holman",
+                                  pytest.param("ias15", marks=pytest.mark.slow)])
 def test_scenario_run_with_forces_resumes_to_the_same_bits(tmp_path, name) -> None:
     """orbitsim run with a forces: list, stopped and resumed from its checkpoint: the same trace as
     one uninterrupted run, with the forces in the trace's attributes."""

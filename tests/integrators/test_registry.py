@@ -170,8 +170,17 @@ def test_no_caller_looks_a_hook_up_by_name() -> None:
     assert _HOOK_LOOKUP.search('counters = getattr(self.sim.module, "counters", None)')  # the check can fail
 
 
-@pytest.mark.parametrize("n", [3, 60])  # both force paths: all pairs (N <= 48) and the third-law rows
-@pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
+def _step_run_cases() -> list:
+    """Every scheme at N = 3 (all pairs, N <= 48) and at N = 60 (the third-law rows). A scheme's
+    step and run compiled for the rows' context are two more specialisations (about 5-40 s on a cold
+    cache) that only this test needs, and the rows kernel is the same whatever scheme calls it:
+    `make test` runs N = 60 with verlet, `make test-slow` with every other scheme."""
+    return [pytest.param(spec, n, id=f"{spec.name}-{n}",
+                         marks=pytest.mark.slow if n == 60 and spec.name != "verlet" else ())
+            for n in (3, 60) for spec in INTEGRATORS]
+
+
+@pytest.mark.parametrize(("spec", "n"), _step_run_cases())
 def test_step_gives_the_same_bits_as_run(spec: IntegratorSpec, n: int) -> None:
     """``step`` and ``run`` write each scheme's steps once (``advance``) but reach them by different
     paths; the contract is that stepping one at a time and running straight through agree exactly."""
