@@ -43,6 +43,15 @@ it and a default where a scheme has nothing to say. Callers use the record's fie
 15. ``run_constants``: indices of ``work`` entries a restored checkpoint does not override (the
     run's own end time). Default: none.
 16. ``kicks``, ``drifts``: the coefficient tables of a drift-kick-drift composition. Default: None.
+17. ``run_chaos(state, tangent, force, dt, work, t0, n_done, targets, record, out, indicators, megno)``:
+    ``run`` with the first-order variational (tangent) equations stepped beside the bodies by the
+    scheme's own operators and MEGNO's sums read after every step (:mod:`orbitsim.chaos`):
+    :func:`chaos_sample_loop` around the scheme's ``advance_chaos``. ``tangent`` is a
+    :class:`Tangent`, ``megno`` a :class:`~orbitsim.chaos.megno.MegnoState`; each sample also writes
+    ``indicators[r] = (MEGNO, mLCE)``. Returns ``(samples_written, n_done, finite, megno)``.
+    Default: None, a scheme without variational equations (:func:`chaos_schemes` lists the others).
+18. ``check_chaos(settings) -> str | None``: why these settings have no variational equations (one
+    line), or None. Default: None (every setting has them).
 
 One loop, each scheme's own steps
 ---------------------------------
@@ -74,11 +83,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
+from orbitsim.chaos.megno import lyapunov, megno_value
 from orbitsim.forces.hooks import record_force_energy
 from orbitsim.physics.diagnostics import angular_momentum_into, kinetic_energy, momentum_into, potential_of
 
@@ -151,6 +161,11 @@ def _grid_clock(work: Any, grid_time: float) -> float:
     return grid_time
 
 
+def _chaos_everywhere(settings: Mapping[str, Any]) -> None:
+    """Every setting of the scheme has variational equations."""
+    return None
+
+
 def _nothing(work: Any) -> None:
     """The scheme has nothing to report (no failure detail, counters, in-step merges or handoff)."""
     return None
@@ -179,6 +194,8 @@ class Integrator:
     run_constants: tuple[int, ...] = ()
     kicks: np.ndarray | None = None
     drifts: np.ndarray | None = None
+    run_chaos: Callable[..., Any] | None = None
+    check_chaos: Callable[[Mapping[str, Any]], str | None] = _chaos_everywhere
 
     def default_settings(self) -> dict[str, Any]:
         """Every setting's default, in the scheme's order (empty for a scheme without settings)."""
@@ -295,3 +312,63 @@ def sample_loop(advance, sample_time, state, force, dt, work, t0, n_done, target
                 return written, n_done, False
             written += 1
     return written, n_done, True
+
+
+#: Rows of a :class:`Tangent`'s scratch: enough for every scheme's variational step (Wisdom-Holman's
+#: Jacobi copies, :data:`orbitsim.integrators.wisdom_holman.tangent.TANGENT_SCRATCH_ROWS`).
+TANGENT_SCRATCH_ROWS = 8
+
+
+class Tangent(NamedTuple):
+    """The variational state of a run beside its bodies (contract item 17).
+
+    ``dpos``, ``dvel`` (3, N): the tangent vector, in the bodies' (inertial) frame, synchronised with
+    ``pos``/``vel`` between steps; ``dacc`` (3, N): its accelerations (scratch; a kick-drift-kick
+    scheme keeps those at the current state in it); ``scratch`` (:data:`TANGENT_SCRATCH_ROWS`, 3, N);
+    ``halvings`` int64 (1,): how many exact 2^-200 rescalings the tangent vector has had
+    (:func:`orbitsim.chaos.megno.rescale_power_of_two`), so ln |delta| stays known.
+    """
+
+    dpos: np.ndarray
+    dvel: np.ndarray
+    dacc: np.ndarray
+    scratch: np.ndarray
+    halvings: np.ndarray
+
+
+def make_tangent(dpos: np.ndarray, dvel: np.ndarray, halvings: int = 0) -> Tangent:
+    """A :class:`Tangent` holding copies of the (3, N) tangent vector ``dpos``, ``dvel``."""
+    dpos = np.array(dpos, dtype=np.float64, order="C")
+    dvel = np.array(dvel, dtype=np.float64, order="C")
+    if dpos.ndim != 2 or dpos.shape[0] != 3 or dvel.shape != dpos.shape:
+        raise ValueError(f"a tangent vector is two (3, N) arrays, got {dpos.shape} and {dvel.shape}")
+    n = dpos.shape[1]
+    return Tangent(dpos, dvel, np.zeros((3, n)), np.zeros((TANGENT_SCRATCH_ROWS, 3, n)),
+                   np.array([halvings], dtype=np.int64))
+
+
+@jit_inline
+def chaos_sample_loop(advance_chaos, sample_time, state, tangent, force, dt, work, t0, n_done, targets, record, out,
+                      indicators, megno):
+    """The ``run_chaos`` of every scheme with variational equations: :func:`sample_loop` with the
+    tangent state and MEGNO's sums stepped by ``advance_chaos``, and (MEGNO, mLCE) at each sample.
+
+    ``advance_chaos(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, megno)`` takes the
+    steps from ``n_done`` to ``n_to`` and returns ``(n_done, ok, megno)``. ``indicators`` (S, 2).
+    Returns ``(samples_written, n_done, finite, megno)``.
+    """
+    pos, vel, acc, m = state
+    written = np.int64(0)
+    for k in range(targets.shape[0]):
+        if n_done < targets[k]:
+            n_done, ok, megno = advance_chaos(pos, vel, acc, m, force, dt, work, t0, n_done, targets[k], tangent, megno)
+            if not ok:
+                return written, n_done, False, megno
+        if record[k]:
+            time = sample_time(work, t0, n_done, dt)
+            if not record_sample(written, n_done, time, pos, vel, m, force, out):
+                return written, n_done, False, megno
+            indicators[written, 0] = megno_value(megno, time)
+            indicators[written, 1] = lyapunov(megno)
+            written += 1
+    return written, n_done, True, megno

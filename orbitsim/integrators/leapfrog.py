@@ -37,6 +37,12 @@ Each order has its own ``advance``, ``step``, ``run`` and ``run_watched`` (``adv
 compiles in as constants: one function per order is what keeps every order in the on-disk cache
 (a factory's closures would miss it) and compiles only the order a run uses. The steps they share,
 :func:`advance_dkd`, take the tables as arguments.
+
+Why one module: the four orders are one family driven by one table each, and every entry point of an
+order (``advance``, ``step``, ``run``, ``run_watched``, and ``run_chaos``, the variational run of
+:func:`advance_dkd_chaos`) must read that order's tables as globals of the module that holds its
+record; split, the chaos entry points would import the tables from here while the records here
+import them back.
 """
 
 from __future__ import annotations
@@ -44,10 +50,21 @@ from __future__ import annotations
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
+from orbitsim.chaos.step import megno_after_step
 from orbitsim.events.kernels import watched_run
 from orbitsim.forces.hooks import add_kick_forces, refresh_accelerations, velocity_operator
-from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, grid_time, kick_drift, sample_loop
+from orbitsim.forces.tangent import add_tangent_kick_forces
+from orbitsim.integrators.base import (
+    Integrator,
+    IntegratorSpec,
+    chaos_sample_loop,
+    drift,
+    grid_time,
+    kick_drift,
+    sample_loop,
+)
 from orbitsim.physics.force_context import newtonian_accelerations
+from orbitsim.physics.tangent import ALL_PAIRS, tangent_accelerations
 
 #: Order 2: the plain drift-kick-drift leapfrog, one substep.
 LEAPFROG2_WEIGHTS = np.array([1.0])
@@ -113,6 +130,31 @@ def advance_dkd(pos, vel, acc, m, force, dt, steps, drifts, kicks):
         velocity_operator(force, pos, vel, m, half_dt)
 
 
+@jit_inline
+def advance_dkd_chaos(pos, vel, acc, m, force, dt, t0, n_done, n_to, drifts, kicks, tangent, megno):
+    """:func:`advance_dkd` with the tangent vector stepped beside the bodies (the tangent of a drift
+    is a drift, of a kick a kick with the tangent accelerations at the kick's positions) and MEGNO's
+    read after each step. The bodies take the same operations as in :func:`advance_dkd`, so the same
+    bits. Returns ``(n_done, True, megno)``."""
+    dpos, dvel, dacc = tangent.dpos, tangent.dvel, tangent.dacc
+    G = force.G
+    eps2 = force.eps2
+    while n_done < n_to:
+        drift(pos, vel, dt * drifts[0])
+        drift(dpos, dvel, dt * drifts[0])
+        for s in range(kicks.shape[0]):
+            newtonian_accelerations(force, pos, m, acc)
+            add_kick_forces(force, pos, m, acc)
+            tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+            add_tangent_kick_forces(force, pos, m, dpos, dacc)
+            kick_drift(pos, vel, acc, dt * kicks[s], dt * drifts[s + 1])
+            kick_drift(dpos, dvel, dacc, dt * kicks[s], dt * drifts[s + 1])
+        n_done += 1
+        megno, halvings = megno_after_step(megno, pos, m, force, dpos, dvel, dacc, t0 + n_done * dt, dt)
+        tangent.halvings[0] += halvings
+    return n_done, True, megno
+
+
 # -- order 2: leapfrog --------------------------------------------------------------------------
 
 KICKS2 = LEAPFROG2_WEIGHTS
@@ -141,6 +183,19 @@ def run2(state, force, dt, work, t0, n_done, targets, record, out):
     return sample_loop(advance2, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
+@jit_inline
+def advance_chaos2(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, megno):
+    """:func:`advance_dkd_chaos` with the order-2 tables."""
+    return advance_dkd_chaos(pos, vel, acc, m, force, dt, t0, n_done, n_to, DRIFTS2, KICKS2, tangent, megno)
+
+
+@jit
+def run_chaos2(state, tangent, force, dt, work, t0, n_done, targets, record, out, indicators, megno):
+    """:func:`~orbitsim.integrators.base.chaos_sample_loop` of :func:`advance_chaos2`."""
+    return chaos_sample_loop(advance_chaos2, grid_time, state, tangent, force, dt, work, t0, n_done, targets,
+                             record, out, indicators, megno)
+
+
 @jit
 def run_watched2(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run2` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
@@ -165,6 +220,7 @@ LEAPFROG = Integrator(
     step=step2,
     run=run2,
     run_watched=run_watched2,
+    run_chaos=run_chaos2,
     kicks=KICKS2,
     drifts=DRIFTS2,
 )
@@ -198,6 +254,19 @@ def run4(state, force, dt, work, t0, n_done, targets, record, out):
     return sample_loop(advance4, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
+@jit_inline
+def advance_chaos4(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, megno):
+    """:func:`advance_dkd_chaos` with the order-4 tables."""
+    return advance_dkd_chaos(pos, vel, acc, m, force, dt, t0, n_done, n_to, DRIFTS4, KICKS4, tangent, megno)
+
+
+@jit
+def run_chaos4(state, tangent, force, dt, work, t0, n_done, targets, record, out, indicators, megno):
+    """:func:`~orbitsim.integrators.base.chaos_sample_loop` of :func:`advance_chaos4`."""
+    return chaos_sample_loop(advance_chaos4, grid_time, state, tangent, force, dt, work, t0, n_done, targets,
+                             record, out, indicators, megno)
+
+
 @jit
 def run_watched4(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run4` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
@@ -221,6 +290,7 @@ LEAPFROG4 = Integrator(
     step=step4,
     run=run4,
     run_watched=run_watched4,
+    run_chaos=run_chaos4,
     kicks=KICKS4,
     drifts=DRIFTS4,
 )
@@ -254,6 +324,19 @@ def run6(state, force, dt, work, t0, n_done, targets, record, out):
     return sample_loop(advance6, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
+@jit_inline
+def advance_chaos6(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, megno):
+    """:func:`advance_dkd_chaos` with the order-6 tables."""
+    return advance_dkd_chaos(pos, vel, acc, m, force, dt, t0, n_done, n_to, DRIFTS6, KICKS6, tangent, megno)
+
+
+@jit
+def run_chaos6(state, tangent, force, dt, work, t0, n_done, targets, record, out, indicators, megno):
+    """:func:`~orbitsim.integrators.base.chaos_sample_loop` of :func:`advance_chaos6`."""
+    return chaos_sample_loop(advance_chaos6, grid_time, state, tangent, force, dt, work, t0, n_done, targets,
+                             record, out, indicators, megno)
+
+
 @jit
 def run_watched6(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run6` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
@@ -278,6 +361,7 @@ LEAPFROG6 = Integrator(
     step=step6,
     run=run6,
     run_watched=run_watched6,
+    run_chaos=run_chaos6,
     kicks=KICKS6,
     drifts=DRIFTS6,
 )
@@ -311,6 +395,19 @@ def run8(state, force, dt, work, t0, n_done, targets, record, out):
     return sample_loop(advance8, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
+@jit_inline
+def advance_chaos8(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, megno):
+    """:func:`advance_dkd_chaos` with the order-8 tables."""
+    return advance_dkd_chaos(pos, vel, acc, m, force, dt, t0, n_done, n_to, DRIFTS8, KICKS8, tangent, megno)
+
+
+@jit
+def run_chaos8(state, tangent, force, dt, work, t0, n_done, targets, record, out, indicators, megno):
+    """:func:`~orbitsim.integrators.base.chaos_sample_loop` of :func:`advance_chaos8`."""
+    return chaos_sample_loop(advance_chaos8, grid_time, state, tangent, force, dt, work, t0, n_done, targets,
+                             record, out, indicators, megno)
+
+
 @jit
 def run_watched8(state, force, dt, work, t0, n_done, targets, record, out, watch):
     """:func:`run8` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
@@ -335,6 +432,7 @@ LEAPFROG8 = Integrator(
     step=step8,
     run=run8,
     run_watched=run_watched8,
+    run_chaos=run_chaos8,
     kicks=KICKS8,
     drifts=DRIFTS8,
 )

@@ -121,3 +121,18 @@ def get_spec(name: str) -> IntegratorSpec:
 def canonical_name(name: str) -> str:
     """The registry name for a name or alias (``"kdk"`` -> ``"verlet"``)."""
     return get_spec(name).name
+
+
+def chaos_schemes() -> tuple[str, ...]:
+    """The names of the schemes with variational equations (a ``run_chaos``), in :data:`SCHEMES` order."""
+    return tuple(record.spec.name for record in _records() if record.run_chaos is not None)
+
+
+def chaos_refusal(name: str, settings: dict[str, Any] | None = None) -> str | None:
+    """One line saying why scheme ``name`` with ``settings`` cannot run the variational equations
+    (naming the schemes that can), or None when it can."""
+    record = get_integrator(name)
+    if record.run_chaos is None:
+        return (f"integrator {record.spec.name!r} has no variational equations, so no chaos indicators; "
+                f"schemes that have them: {', '.join(chaos_schemes())}")
+    return record.check_chaos(record.validate_settings(settings))

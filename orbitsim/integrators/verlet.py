@@ -11,10 +11,13 @@ opening kick (first-same-as-last), so a step costs one force evaluation.
 from __future__ import annotations
 
 from orbitsim._jit import jit, jit_inline
+from orbitsim.chaos.step import megno_after_step
 from orbitsim.events.kernels import watched_run
 from orbitsim.forces.hooks import add_kick_forces, has_velocity_operator, refresh_accelerations, velocity_operator
-from orbitsim.integrators.base import Integrator, IntegratorSpec, drift, grid_time, kick, sample_loop
+from orbitsim.forces.tangent import add_tangent_kick_forces
+from orbitsim.integrators.base import Integrator, IntegratorSpec, chaos_sample_loop, drift, grid_time, kick, sample_loop
 from orbitsim.physics.force_context import newtonian_accelerations
+from orbitsim.physics.tangent import ALL_PAIRS, tangent_accelerations
 
 SPEC = IntegratorSpec(
     name="verlet",
@@ -103,4 +106,46 @@ def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch)
     return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
 
 
-VERLET = Integrator(spec=SPEC, step=step, run=run, run_watched=run_watched)
+@jit_inline
+def advance_chaos(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, megno):
+    """KDK steps of the bodies and their tangent vector (the tangent of a kick is a kick with the
+    tangent accelerations, of a drift a drift), with MEGNO's read after each step. ``acc`` and
+    ``tangent.dacc`` hold the accelerations at the current state between steps; ``dacc`` is made
+    afresh on entry (a function of the state alone, so however the run is cut, the same bits). The
+    bodies take the operations of separate :func:`advance` steps, so the same bits. Returns
+    ``(n_done, True, megno)``."""
+    dpos, dvel, dacc = tangent.dpos, tangent.dvel, tangent.dacc
+    G = force.G
+    eps2 = force.eps2
+    half_dt = 0.5 * dt
+    tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+    add_tangent_kick_forces(force, pos, m, dpos, dacc)
+    while n_done < n_to:
+        kick(vel, acc, half_dt)
+        kick(dvel, dacc, half_dt)
+        drift(pos, vel, dt)
+        drift(dpos, dvel, dt)
+        newtonian_accelerations(force, pos, m, acc)
+        add_kick_forces(force, pos, m, acc)
+        tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+        add_tangent_kick_forces(force, pos, m, dpos, dacc)
+        kick(vel, acc, half_dt)
+        kick(dvel, dacc, half_dt)
+        n_done += 1
+        # MEGNO's read recomputes dacc at the synchronised state: the next opening kick's.
+        megno, halvings = megno_after_step(megno, pos, m, force, dpos, dvel, dacc, t0 + n_done * dt, dt)
+        tangent.halvings[0] += halvings
+    return n_done, True, megno
+
+
+@jit
+def run_chaos(state, tangent, force, dt, work, t0, n_done, targets, record, out, indicators, megno):
+    """:func:`~orbitsim.integrators.base.chaos_sample_loop` of :func:`advance_chaos`; a forced run's
+    ``acc`` afresh first."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return chaos_sample_loop(advance_chaos, grid_time, state, tangent, force, dt, work, t0, n_done, targets, record,
+                             out, indicators, megno)
+
+
+VERLET = Integrator(spec=SPEC, step=step, run=run, run_watched=run_watched, run_chaos=run_chaos)

@@ -107,13 +107,24 @@ def test_every_record_has_step_run_and_run_watched(spec: IntegratorSpec) -> None
 
 #: Every hook of the record (orbitsim.integrators.base's numbered contract) that is a function.
 HOOKS = ("step", "run", "run_watched", "validate_settings", "make_work", "carry_over", "check_bodies", "clock_time",
-         "failure_message", "counters", "take_merges", "handoff")
+         "failure_message", "counters", "take_merges", "handoff", "check_chaos")
 
 
 def test_the_record_declares_every_hook() -> None:
     """The record's fields are the contract: the hooks, the settings, the run constants and the tables."""
     declared = {f.name for f in fields(Integrator)}
-    assert declared == {"spec", *HOOKS, "settings", "run_constants", "kicks", "drifts"}
+    assert declared == {"spec", *HOOKS, "settings", "run_constants", "kicks", "drifts", "run_chaos"}
+
+
+@pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
+def test_run_chaos_is_declared_or_none_and_the_defaults_have_variations(spec: IntegratorSpec) -> None:
+    """``run_chaos`` (contract item 17) is a jitted loop or None; a scheme that has one has variational
+    equations with its default settings (tests/chaos/test_chaos_contract.py runs each of them)."""
+    record = get_integrator(spec.name)
+    if record.run_chaos is None:
+        return
+    assert callable(record.run_chaos)
+    assert record.check_chaos(record.default_settings()) is None
 
 
 @pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)

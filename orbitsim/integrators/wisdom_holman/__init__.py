@@ -72,10 +72,7 @@ from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sam
 from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector
 from orbitsim.integrators.wisdom_holman.operators import (
     DEMOCRATIC_HELIOCENTRIC,
-    F_BODY,
     F_PHASE,
-    F_STATUS,
-    F_STEP,
     JACOBI,
     PHASE_LAGGING,
     PHASE_SYNCED,
@@ -88,6 +85,7 @@ from orbitsim.integrators.wisdom_holman.operators import (
     to_inertial_pos,
     to_inertial_vel,
 )
+from orbitsim.integrators.wisdom_holman.operators import record_failure as _fail
 from orbitsim.integrators.wisdom_holman.settings import COORDINATE_IDS, SETTINGS, validate_settings
 from orbitsim.integrators.wisdom_holman.state import (
     failure_message,
@@ -95,6 +93,7 @@ from orbitsim.integrators.wisdom_holman.state import (
     raise_for_failure,
     restore_internal_state,
 )
+from orbitsim.integrators.wisdom_holman.tangent import check_chaos, run_chaos
 from orbitsim.physics.coordinates import jacobi_weights
 from orbitsim.physics.kepler import (
     KEPLER_OK,
@@ -115,6 +114,7 @@ __all__ = [
     "raise_for_failure",
     "restore_internal_state",
     "run",
+    "run_chaos",
     "run_watched",
     "step",
     "validate_settings",
@@ -235,18 +235,6 @@ def _synchronize(pos, vel, m, force, dt, work):
     to_inertial_vel(svel, m, work.weights, coordinates, vel)
     _remember(pos, vel, work)
     return KEPLER_OK, 0
-
-
-@jit
-def _fail(pos, vel, work, status, body, step_index):
-    """Record a Kepler failure and poison the state so the divergence path reports it."""
-    flags = work.flags
-    flags[F_STATUS] = status
-    flags[F_BODY] = body
-    flags[F_STEP] = step_index
-    flags[F_PHASE] = PHASE_UNSET
-    pos[:, :] = np.nan
-    vel[:, :] = np.nan
 
 
 @jit
@@ -371,4 +359,6 @@ WISDOM_HOLMAN = Integrator(
     make_work=make_work,
     check_bodies=check_bodies,
     failure_message=failure_message,
+    run_chaos=run_chaos,
+    check_chaos=check_chaos,
 )

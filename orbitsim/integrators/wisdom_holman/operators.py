@@ -235,3 +235,15 @@ def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, 
         jvel[0, i] += h * ax
         jvel[1, i] += h * ay
         jvel[2, i] += h * az
+
+
+@jit
+def record_failure(pos, vel, work, status, body, step_index):
+    """Record a Kepler failure and poison the state so the divergence path reports it."""
+    flags = work.flags
+    flags[F_STATUS] = status
+    flags[F_BODY] = body
+    flags[F_STEP] = step_index
+    flags[F_PHASE] = PHASE_UNSET
+    pos[:, :] = np.nan
+    vel[:, :] = np.nan

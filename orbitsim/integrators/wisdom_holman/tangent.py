@@ -39,13 +39,16 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.chaos.step import megno_after_step
 from orbitsim.forces.tangent import add_tangent_kick_forces
-from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kick
+from orbitsim.integrators.base import chaos_sample_loop, grid_time
+from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kick, record_failure
 from orbitsim.physics.coordinates import inertial_to_jacobi, jacobi_to_inertial
 from orbitsim.physics.kepler import KEPLER_NOT_CONVERGED, KEPLER_OK, KEPLER_SINGULAR
 from orbitsim.physics.kepler_solver import SINGULAR, setup, solve
@@ -294,3 +297,37 @@ def kepler_drift_tangent_at(pos, vel, dpos, dvel, i, mu, dt):
 def stiefel_g6_at(beta, X):
     """:func:`stiefel_g6` as a cached entry point (tests)."""
     return stiefel_g6(beta, X)
+
+
+@jit_inline
+def advance_chaos(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, megno):
+    """Steps ``n_done`` .. ``n_to`` of the bodies and their tangent vector with MEGNO's read after
+    each (:func:`~.tangent.tangent_advance`: WHFast's safe-mode arrangement, Jacobi coordinates, no
+    corrector); a Kepler failure is recorded as in :func:`advance`. Returns ``(n_done, ok, megno)``."""
+    n_done, status, body, megno, halvings = tangent_advance(pos, vel, tangent.dpos, tangent.dvel, m, force, dt,
+                                                            work.weights, work.mu, tangent.scratch, megno, t0,
+                                                            n_done, n_to)
+    tangent.halvings[0] += halvings
+    if status != KEPLER_OK:
+        record_failure(pos, vel, work, status, body, n_done + 1)
+        return n_done, False, megno
+    return n_done, True, megno
+
+
+@jit
+def run_chaos(state, tangent, force, dt, work, t0, n_done, targets, record, out, indicators, megno):
+    """:func:`~orbitsim.integrators.base.chaos_sample_loop` of :func:`advance_chaos`."""
+    return chaos_sample_loop(advance_chaos, grid_time, state, tangent, force, dt, work, t0, n_done, targets, record,
+                             out, indicators, megno)
+
+
+def check_chaos(settings: Mapping[str, Any]) -> str | None:
+    """The variational map is built for Jacobi coordinates without correctors (as REBOUND's WHFast
+    refuses its variational particles in other coordinates)."""
+    if settings.get("coordinates", "jacobi") != "jacobi":
+        return ("wisdom_holman's variational equations need coordinates 'jacobi' (as REBOUND's WHFast), "
+                f"got {settings['coordinates']!r}")
+    if settings.get("corrector", 0) != 0:
+        return ("wisdom_holman's variational equations are built without correctors, "
+                f"got corrector {settings['corrector']}")
+    return None
