@@ -114,15 +114,16 @@ def _newtonian_in_chain(pos, m, G, src, an):
 
 
 @jit_inline
-def _to_jacobi(pos, vel, an, m, src, jac):
-    """jac rows 0-8 = Jacobi x, v, a of chain places 1..N-1 (REBOUND's posvelacc transformation);
-    returns the total mass. Column 0 (no Jacobi coordinate) holds the running mass-weighted sums."""
+def _to_jacobi_positions(pos, an, m, src, jac):
+    """jac rows 0-2 and 6-8 = Jacobi x and a of chain places 1..N-1 (REBOUND's posvelacc
+    transformation, the rows that depend on positions only). Column 0 (no Jacobi coordinate)
+    holds the running mass-weighted sums; each row's sums are its own, so the rows can be
+    transformed apart with the same bits."""
     n = pos.shape[1]
     i0 = chain(0, src)
     eta = m[i0]
     for c in range(3):
         jac[c, 0] = eta * pos[c, i0]
-        jac[3 + c, 0] = eta * vel[c, i0]
         jac[6 + c, 0] = eta * an[c, 0]
     for k in range(1, n):
         i = chain(k, src)
@@ -131,10 +132,30 @@ def _to_jacobi(pos, vel, an, m, src, jac):
         pme = eta * ei
         for c in range(3):
             jac[c, k] = pos[c, i] - jac[c, 0] * ei
-            jac[3 + c, k] = vel[c, i] - jac[3 + c, 0] * ei
             jac[6 + c, k] = an[c, k] - jac[6 + c, 0] * ei
-        for c in range(9):
+        for c in range(3):
             jac[c, 0] = jac[c, 0] * pme + m[i] * jac[c, k]
+            jac[6 + c, 0] = jac[6 + c, 0] * pme + m[i] * jac[6 + c, k]
+
+
+@jit_inline
+def _to_jacobi_velocities(vel, m, src, jac):
+    """jac rows 3-5 = Jacobi v of chain places 1..N-1 (as :func:`_to_jacobi_positions`); returns
+    the total mass."""
+    n = vel.shape[1]
+    i0 = chain(0, src)
+    eta = m[i0]
+    for c in range(3):
+        jac[3 + c, 0] = eta * vel[c, i0]
+    for k in range(1, n):
+        i = chain(k, src)
+        ei = 1.0 / eta
+        eta += m[i]
+        pme = eta * ei
+        for c in range(3):
+            jac[3 + c, k] = vel[c, i] - jac[3 + c, 0] * ei
+        for c in range(3):
+            jac[3 + c, 0] = jac[3 + c, 0] * pme + m[i] * jac[3 + c, k]
     return eta
 
 
@@ -157,20 +178,27 @@ def _solve_vtilde(vx, vy, vz, ri, mu, C2):
     return wx, wy, wz, w2, A
 
 
-@jit
-def gr_accelerations(pos, vel, m, G, src, c, acc, work):
-    """acc (3, N) += the single-mass 1PN acceleration (module docstring) about ``src``.
+@jit_inline
+def gr_prepare(pos, m, G, src, work):
+    """The part of :func:`gr_accelerations` that depends on positions only, into ``work``: the
+    Newtonian accelerations (rows 0-2) and the Jacobi positions and accelerations (rows 3-5,
+    9-11). An operator that evaluates the force at fixed positions and several velocities
+    (the implicit midpoint) prepares once and calls :func:`gr_accelerations_prepared` per
+    velocity: the same bits as :func:`gr_accelerations` each time, without the N^2 sum."""
+    _newtonian_in_chain(pos, m, G, src, work[0:3])
+    _to_jacobi_positions(pos, work[0:3], m, src, work[3:12])
 
-    ``work``: at least (15, N) scratch (Newtonian, Jacobi and Jacobi-PN accelerations).
-    """
-    n = pos.shape[1]
+
+@jit_inline
+def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
+    """acc (3, N) += the 1PN acceleration at velocities ``vel``, the positions' part taken from
+    ``work`` as :func:`gr_prepare` left it."""
+    n = vel.shape[1]
     C2 = c * c
     mu = G * m[src]
-    an = work[0:3]
     jac = work[3:12]
     apn = work[12:15]
-    _newtonian_in_chain(pos, m, G, src, an)
-    eta = _to_jacobi(pos, vel, an, m, src, jac)
+    eta = _to_jacobi_velocities(vel, m, src, jac)
     for k in range(1, n):
         x, y, z = jac[0, k], jac[1, k], jac[2, k]
         ri = np.sqrt(x * x + y * y + z * z)
@@ -207,6 +235,16 @@ def gr_accelerations(pos, vel, m, G, src, c, acc, work):
     acc[0, i0] += sx * mi
     acc[1, i0] += sy * mi
     acc[2, i0] += sz * mi
+
+
+@jit
+def gr_accelerations(pos, vel, m, G, src, c, acc, work):
+    """acc (3, N) += the single-mass 1PN acceleration (module docstring) about ``src``.
+
+    ``work``: at least (15, N) scratch (Newtonian, Jacobi and Jacobi-PN accelerations).
+    """
+    gr_prepare(pos, m, G, src, work)
+    gr_accelerations_prepared(vel, m, G, src, c, acc, work)
 
 
 @jit
