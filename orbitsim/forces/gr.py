@@ -34,6 +34,9 @@ from orbitsim._jit import jit, jit_inline
 
 #: Fixed-point iterations for v~ (REBOUNDx's default ``max_iterations``).
 MAX_ITERATIONS = 10
+#: Rows of ``gr``'s work: Newtonian accelerations (0-2), Jacobi x, v, a (3-11), Jacobi 1PN
+#: accelerations (12-14), and per Jacobi coordinate r, mu / r, 3 mu / r, r^3, 3 mu / r^3 (15-19).
+GR_WORK_ROWS = 20
 _EPS = np.finfo(np.float64).eps
 
 
@@ -160,18 +163,19 @@ def _to_jacobi_velocities(vel, m, src, jac):
 
 
 @jit_inline
-def _solve_vtilde(vx, vy, vz, ri, mu, C2):
-    """v~ = v / (1 - A(v~)) by fixed-point iteration, REBOUNDx's stopping rule; returns v~, A."""
+def _solve_vtilde(vx, vy, vz, three_mu_r, C2):
+    """v~ = v / (1 - A(v~)) by fixed-point iteration, REBOUNDx's stopping rule; returns v~, A.
+    ``three_mu_r``: 3 mu / r, computed as ``3.0 * mu / r``."""
     wx, wy, wz = vx, vy, vz
     w2 = wx * wx + wy * wy + wz * wz
-    A = (0.5 * w2 + 3.0 * mu / ri) / C2
+    A = (0.5 * w2 + three_mu_r) / C2
     for _ in range(MAX_ITERATIONS):
         ox, oy, oz = wx, wy, wz
         wx = vx / (1.0 - A)
         wy = vy / (1.0 - A)
         wz = vz / (1.0 - A)
         w2 = wx * wx + wy * wy + wz * wz
-        A = (0.5 * w2 + 3.0 * mu / ri) / C2
+        A = (0.5 * w2 + three_mu_r) / C2
         dx, dy, dz = wx - ox, wy - oy, wz - oz
         if (dx * dx + dy * dy + dz * dz) / w2 < _EPS * _EPS:
             break
@@ -184,9 +188,22 @@ def gr_prepare(pos, m, G, src, work):
     Newtonian accelerations (rows 0-2) and the Jacobi positions and accelerations (rows 3-5,
     9-11). An operator that evaluates the force at fixed positions and several velocities
     (the implicit midpoint) prepares once and calls :func:`gr_accelerations_prepared` per
-    velocity: the same bits as :func:`gr_accelerations` each time, without the N^2 sum."""
+    velocity: the same bits as :func:`gr_accelerations` each time, without the N^2 sum. Rows
+    15-19 get each Jacobi coordinate's r, mu / r, 3 mu / r, r^3 and 3 mu / r^3, each written as
+    the expressions of REBOUNDx's ``gr.c`` evaluate it (left to right), so the bits are theirs."""
     _newtonian_in_chain(pos, m, G, src, work[0:3])
-    _to_jacobi_positions(pos, work[0:3], m, src, work[3:12])
+    jac = work[3:12]
+    _to_jacobi_positions(pos, work[0:3], m, src, jac)
+    mu = G * m[src]
+    for k in range(1, pos.shape[1]):
+        x, y, z = jac[0, k], jac[1, k], jac[2, k]
+        ri = np.sqrt(x * x + y * y + z * z)
+        work[15, k] = ri
+        work[16, k] = mu / ri
+        work[17, k] = 3.0 * mu / ri
+        ri3 = ri * ri * ri
+        work[18, k] = ri3
+        work[19, k] = 3.0 * mu / ri3
 
 
 @jit_inline
@@ -201,15 +218,14 @@ def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
     eta = _to_jacobi_velocities(vel, m, src, jac)
     for k in range(1, n):
         x, y, z = jac[0, k], jac[1, k], jac[2, k]
-        ri = np.sqrt(x * x + y * y + z * z)
-        wx, wy, wz, w2, A = _solve_vtilde(jac[3, k], jac[4, k], jac[5, k], ri, mu, C2)
-        B = (mu / ri - 1.5 * w2) * mu / (ri * ri * ri) / C2
+        wx, wy, wz, w2, A = _solve_vtilde(jac[3, k], jac[4, k], jac[5, k], work[17, k], C2)
+        B = (work[16, k] - 1.5 * w2) * mu / work[18, k] / C2
         rdotrdot = x * jac[3, k] + y * jac[4, k] + z * jac[5, k]
         vdx = jac[6, k] + B * x
         vdy = jac[7, k] + B * y
         vdz = jac[8, k] + B * z
         vdotvdot = wx * vdx + wy * vdy + wz * vdz
-        D = (vdotvdot - 3.0 * mu / (ri * ri * ri) * rdotrdot) / C2
+        D = (vdotvdot - work[19, k] * rdotrdot) / C2
         apn[0, k] = B * (1.0 - A) * x - A * jac[6, k] - D * wx
         apn[1, k] = B * (1.0 - A) * y - A * jac[7, k] - D * wy
         apn[2, k] = B * (1.0 - A) * z - A * jac[8, k] - D * wz
@@ -241,7 +257,7 @@ def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
 def gr_accelerations(pos, vel, m, G, src, c, acc, work):
     """acc (3, N) += the single-mass 1PN acceleration (module docstring) about ``src``.
 
-    ``work``: at least (15, N) scratch (Newtonian, Jacobi and Jacobi-PN accelerations).
+    ``work``: at least (:data:`GR_WORK_ROWS`, N) scratch.
     """
     gr_prepare(pos, m, G, src, work)
     gr_accelerations_prepared(vel, m, G, src, c, acc, work)

@@ -31,6 +31,7 @@ from numba.extending import overload
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.gr import (
+    GR_WORK_ROWS,
     MAX_ITERATIONS,
     gr_accelerations,
     gr_accelerations_prepared,
@@ -50,8 +51,8 @@ __all__ = ["SCRATCH_ROWS", "add_position_forces", "add_velocity_forces", "force_
 #: Rows of the operator's own state: v at the start, the latest and the previous estimate of v at
 #: the end, the midpoint v, the acceleration there (3 rows each).
 _OP_ROWS = 15
-#: Rows of the scratch: the operator's, then the force's work rows (gr needs 15, gr_full 20).
-SCRATCH_ROWS = _OP_ROWS + max(15, WORK_ROWS)
+#: Rows of the scratch: the operator's, then the force's work rows (gr needs 20, gr_full 20).
+SCRATCH_ROWS = _OP_ROWS + max(GR_WORK_ROWS, WORK_ROWS)
 #: Implicit-midpoint iterations, and its test |dv|^2 / |v|^2 < eps^2 (REBOUNDx's).
 _MIDPOINT_ITERATIONS = MAX_ITERATIONS
 _EPS = np.finfo(np.float64).eps
