@@ -182,7 +182,7 @@ def _solve_vtilde(vx, vy, vz, three_mu_r, C2):
     return wx, wy, wz, w2, A
 
 
-@jit_inline
+@jit
 def gr_prepare(pos, m, G, src, work):
     """The part of :func:`gr_accelerations` that depends on positions only, into ``work``: the
     Newtonian accelerations (rows 0-2) and the Jacobi positions and accelerations (rows 3-5,
@@ -206,7 +206,7 @@ def gr_prepare(pos, m, G, src, work):
         work[19, k] = 3.0 * mu / ri3
 
 
-@jit_inline
+@jit
 def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
     """acc (3, N) += the 1PN acceleration at velocities ``vel``, the positions' part taken from
     ``work`` as :func:`gr_prepare` left it."""
