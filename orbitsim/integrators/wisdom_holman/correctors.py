@@ -31,8 +31,6 @@ References
 from __future__ import annotations
 
 import numpy as np
-from numba import types
-from numba.extending import overload
 
 from orbitsim._jit import jit
 from orbitsim.integrators.wisdom_holman.operators import (
@@ -119,12 +117,13 @@ def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, ks
 def apply_corrector(jpos, jvel, m, force, dt, inv, work):
     """C (``inv = 1.0``) or C^-1 (``inv = -1.0``) of the selected order; returns ``(status, body)``.
 
-    The stage tables in ``work`` are None when no corrector is selected (:func:`corrector`, which
-    the map calls, then compiles to nothing). Correctors need Jacobi coordinates (enforced by the
-    settings validation; checked here too).
+    The stage tables in ``work`` are empty when no corrector is selected. Correctors need Jacobi
+    coordinates (enforced by the settings validation; checked here too).
     """
     stage_a = work.stage_a
     stage_b = work.stage_b
+    if stage_a.shape[0] == 0:
+        return KEPLER_OK, 0
     if work.config[0] != JACOBI:
         raise ValueError("wisdom_holman: symplectic correctors need Jacobi coordinates")
     G = force.G
@@ -142,17 +141,3 @@ def apply_corrector(jpos, jvel, m, force, dt, inv, work):
         if status != KEPLER_OK:
             return status, body
     return KEPLER_OK, 0
-
-
-def corrector(jpos, jvel, m, force, dt, inv, work):
-    """:func:`apply_corrector` where ``work`` has stage tables, ``(KEPLER_OK, 0)`` where they are None
-    (no corrector): resolved when the caller compiles, so a run without a corrector compiles none
-    of the stages (:func:`corrector_stage`, its kicks and drifts: ~3 s of a first run)."""
-    raise NotImplementedError("called from jitted code only")
-
-
-@overload(corrector, inline="always")
-def _ol_corrector(jpos, jvel, m, force, dt, inv, work):
-    if isinstance(work.types[work.fields.index("stage_a")], types.NoneType):
-        return lambda jpos, jvel, m, force, dt, inv, work: (KEPLER_OK, 0)
-    return lambda jpos, jvel, m, force, dt, inv, work: apply_corrector(jpos, jvel, m, force, dt, inv, work)
