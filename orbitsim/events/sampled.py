@@ -4,7 +4,7 @@ Without an ``events:`` section a run is the plain fixed-dt loop, and nothing sai
 comet stepped at dt = P / 200 was thrown out at its first perihelion: the run ended ``complete``.
 :class:`StepCheck` looks, between the run's jitted calls, at the state the run has reached (at
 the start, and then each time a chunk of samples is handed over), finds each body's shortest
-timescale ahead (:func:`orbitsim.events.timescales.orbit_timescales`: now, or at the pericentre of
+timescale ahead (:func:`orbitsim.events.timescales.timescales_of`: now, or at the pericentre of
 its osculating orbit about its dominant attractor) and remembers the first state in which dt
 exceeds it. The run then prints one warning, naming the body and the ``events:`` line that
 watches every step, and the trace keeps it as the attribute ``unresolved_warning``.
@@ -80,11 +80,11 @@ class StepCheck:
         if self.pairs_examined + pairs > FREE_PAIRS + stepped // PAIR_SHARE:
             return
         self.pairs_examined += pairs
-        from orbitsim.events.timescales import orbit_timescales  # noqa: PLC0415 -- lazy: loads numba
+        from orbitsim.events.timescales import timescales_of  # noqa: PLC0415 -- lazy: loads numba
 
         n = sim.n
         tau, attractor, closest = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n)
-        orbit_timescales(sim.pos, sim.vel, sim.m, float(sim.G), float(sim.softening) ** 2, tau, attractor, closest)
+        timescales_of(sim.pos, sim.vel, sim.m, float(sim.G), float(sim.softening) ** 2, tau, attractor, closest)
         with np.errstate(invalid="ignore"):  # a non-finite state (a diverging run) flags nothing
             too_long = np.flatnonzero(self.dt > tau)
         fixes = [fix for i in too_long if (fix := self._fix(sim, int(i), int(attractor[i]), tau[i], closest[i]))]

@@ -13,13 +13,19 @@ comet at aphelion shows that dt = P / 200 is far too long for its perihelion.
 from __future__ import annotations
 
 import math
+import types
+from collections.abc import Callable
 
 import numpy as np
 
 from orbitsim._jit import jit
 from orbitsim.events.bodies import two_body_tau2
 
-__all__ = ["orbit_timescales"]
+__all__ = ["PYTHON_MAX_N", "orbit_timescales", "orbit_timescales_python", "timescales_of"]
+
+#: Up to this many bodies :func:`timescales_of` runs the check's code in the interpreter: at N = 32
+#: about a millisecond a look, where compiling it costs a first run 1-2 s (a third of a 10-step run).
+PYTHON_MAX_N = 32
 
 
 @jit
@@ -77,3 +83,35 @@ def orbit_timescales(pos, vel, m, G, eps2, tau, attractor, closest):
             tau2 = max(tau2, eps2 * math.sqrt(eps2) / gm)
         tau[i] = math.sqrt(tau2)
         closest[i] = where
+
+
+def _interpreted() -> Callable[..., None]:
+    """:func:`orbit_timescales`'s own code, for the interpreter: the Python functions behind the
+    jitted one and its ``two_body_tau2`` (plain functions under ``NUMBA_DISABLE_JIT``)."""
+    body = getattr(orbit_timescales, "py_func", orbit_timescales)
+    tau2 = getattr(two_body_tau2, "py_func", two_body_tau2)
+    return types.FunctionType(body.__code__, {**body.__globals__, "two_body_tau2": tau2}, body.__name__)
+
+
+_orbit_timescales_python = _interpreted()
+
+
+def orbit_timescales_python(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, eps2: float, tau: np.ndarray,
+                            attractor: np.ndarray, closest: np.ndarray) -> None:
+    """:func:`orbit_timescales` run by the interpreter, nothing compiled. Every operation is the
+    same IEEE double operation in the same order on numpy float64 scalars (no fastmath, no
+    contraction in the compiled one), so the outputs are the same bits (tested). Division by zero
+    gives inf or nan as compiled (``error_model="numpy"``), not an exception."""
+    with np.errstate(all="ignore"):
+        _orbit_timescales_python(pos, vel, m, G, eps2, tau, attractor, closest)
+
+
+def timescales_of(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, eps2: float, tau: np.ndarray,
+                  attractor: np.ndarray, closest: np.ndarray) -> None:
+    """:func:`orbit_timescales`, interpreted for a finite state of at most :data:`PYTHON_MAX_N`
+    bodies (a run's first look then compiles nothing), compiled otherwise. A state that is not
+    finite goes to the compiled code, where ``math.sqrt`` of a nan cannot raise."""
+    if pos.shape[1] <= PYTHON_MAX_N and np.isfinite(pos).all() and np.isfinite(vel).all():
+        orbit_timescales_python(pos, vel, m, G, eps2, tau, attractor, closest)
+    else:
+        orbit_timescales(pos, vel, m, G, eps2, tau, attractor, closest)

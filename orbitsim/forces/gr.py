@@ -34,6 +34,9 @@ from orbitsim._jit import jit, jit_inline
 
 #: Fixed-point iterations for v~ (REBOUNDx's default ``max_iterations``).
 MAX_ITERATIONS = 10
+#: Rows of ``gr``'s work: Newtonian accelerations (0-2), Jacobi x, v, a (3-11), Jacobi 1PN
+#: accelerations (12-14), and per Jacobi coordinate r, mu / r, 3 mu / r, r^3, 3 mu / r^3 (15-19).
+GR_WORK_ROWS = 20
 _EPS = np.finfo(np.float64).eps
 
 
@@ -114,15 +117,16 @@ def _newtonian_in_chain(pos, m, G, src, an):
 
 
 @jit_inline
-def _to_jacobi(pos, vel, an, m, src, jac):
-    """jac rows 0-8 = Jacobi x, v, a of chain places 1..N-1 (REBOUND's posvelacc transformation);
-    returns the total mass. Column 0 (no Jacobi coordinate) holds the running mass-weighted sums."""
+def _to_jacobi_positions(pos, an, m, src, jac):
+    """jac rows 0-2 and 6-8 = Jacobi x and a of chain places 1..N-1 (REBOUND's posvelacc
+    transformation, the rows that depend on positions only). Column 0 (no Jacobi coordinate)
+    holds the running mass-weighted sums; each row's sums are its own, so the rows can be
+    transformed apart with the same bits."""
     n = pos.shape[1]
     i0 = chain(0, src)
     eta = m[i0]
     for c in range(3):
         jac[c, 0] = eta * pos[c, i0]
-        jac[3 + c, 0] = eta * vel[c, i0]
         jac[6 + c, 0] = eta * an[c, 0]
     for k in range(1, n):
         i = chain(k, src)
@@ -131,26 +135,47 @@ def _to_jacobi(pos, vel, an, m, src, jac):
         pme = eta * ei
         for c in range(3):
             jac[c, k] = pos[c, i] - jac[c, 0] * ei
-            jac[3 + c, k] = vel[c, i] - jac[3 + c, 0] * ei
             jac[6 + c, k] = an[c, k] - jac[6 + c, 0] * ei
-        for c in range(9):
+        for c in range(3):
             jac[c, 0] = jac[c, 0] * pme + m[i] * jac[c, k]
+            jac[6 + c, 0] = jac[6 + c, 0] * pme + m[i] * jac[6 + c, k]
+
+
+@jit_inline
+def _to_jacobi_velocities(vel, m, src, jac):
+    """jac rows 3-5 = Jacobi v of chain places 1..N-1 (as :func:`_to_jacobi_positions`); returns
+    the total mass."""
+    n = vel.shape[1]
+    i0 = chain(0, src)
+    eta = m[i0]
+    for c in range(3):
+        jac[3 + c, 0] = eta * vel[c, i0]
+    for k in range(1, n):
+        i = chain(k, src)
+        ei = 1.0 / eta
+        eta += m[i]
+        pme = eta * ei
+        for c in range(3):
+            jac[3 + c, k] = vel[c, i] - jac[3 + c, 0] * ei
+        for c in range(3):
+            jac[3 + c, 0] = jac[3 + c, 0] * pme + m[i] * jac[3 + c, k]
     return eta
 
 
 @jit_inline
-def _solve_vtilde(vx, vy, vz, ri, mu, C2):
-    """v~ = v / (1 - A(v~)) by fixed-point iteration, REBOUNDx's stopping rule; returns v~, A."""
+def _solve_vtilde(vx, vy, vz, three_mu_r, C2):
+    """v~ = v / (1 - A(v~)) by fixed-point iteration, REBOUNDx's stopping rule; returns v~, A.
+    ``three_mu_r``: 3 mu / r, computed as ``3.0 * mu / r``."""
     wx, wy, wz = vx, vy, vz
     w2 = wx * wx + wy * wy + wz * wz
-    A = (0.5 * w2 + 3.0 * mu / ri) / C2
+    A = (0.5 * w2 + three_mu_r) / C2
     for _ in range(MAX_ITERATIONS):
         ox, oy, oz = wx, wy, wz
         wx = vx / (1.0 - A)
         wy = vy / (1.0 - A)
         wz = vz / (1.0 - A)
         w2 = wx * wx + wy * wy + wz * wz
-        A = (0.5 * w2 + 3.0 * mu / ri) / C2
+        A = (0.5 * w2 + three_mu_r) / C2
         dx, dy, dz = wx - ox, wy - oy, wz - oz
         if (dx * dx + dy * dy + dz * dz) / w2 < _EPS * _EPS:
             break
@@ -158,30 +183,49 @@ def _solve_vtilde(vx, vy, vz, ri, mu, C2):
 
 
 @jit
-def gr_accelerations(pos, vel, m, G, src, c, acc, work):
-    """acc (3, N) += the single-mass 1PN acceleration (module docstring) about ``src``.
-
-    ``work``: at least (15, N) scratch (Newtonian, Jacobi and Jacobi-PN accelerations).
-    """
-    n = pos.shape[1]
-    C2 = c * c
-    mu = G * m[src]
-    an = work[0:3]
+def gr_prepare(pos, m, G, src, work):
+    """The part of :func:`gr_accelerations` that depends on positions only, into ``work``: the
+    Newtonian accelerations (rows 0-2) and the Jacobi positions and accelerations (rows 3-5,
+    9-11). An operator that evaluates the force at fixed positions and several velocities
+    (the implicit midpoint) prepares once and calls :func:`gr_accelerations_prepared` per
+    velocity: the same bits as :func:`gr_accelerations` each time, without the N^2 sum. Rows
+    15-19 get each Jacobi coordinate's r, mu / r, 3 mu / r, r^3 and 3 mu / r^3, each written as
+    the expressions of REBOUNDx's ``gr.c`` evaluate it (left to right), so the bits are theirs."""
+    _newtonian_in_chain(pos, m, G, src, work[0:3])
     jac = work[3:12]
-    apn = work[12:15]
-    _newtonian_in_chain(pos, m, G, src, an)
-    eta = _to_jacobi(pos, vel, an, m, src, jac)
-    for k in range(1, n):
+    _to_jacobi_positions(pos, work[0:3], m, src, jac)
+    mu = G * m[src]
+    for k in range(1, pos.shape[1]):
         x, y, z = jac[0, k], jac[1, k], jac[2, k]
         ri = np.sqrt(x * x + y * y + z * z)
-        wx, wy, wz, w2, A = _solve_vtilde(jac[3, k], jac[4, k], jac[5, k], ri, mu, C2)
-        B = (mu / ri - 1.5 * w2) * mu / (ri * ri * ri) / C2
+        work[15, k] = ri
+        work[16, k] = mu / ri
+        work[17, k] = 3.0 * mu / ri
+        ri3 = ri * ri * ri
+        work[18, k] = ri3
+        work[19, k] = 3.0 * mu / ri3
+
+
+@jit
+def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
+    """acc (3, N) += the 1PN acceleration at velocities ``vel``, the positions' part taken from
+    ``work`` as :func:`gr_prepare` left it."""
+    n = vel.shape[1]
+    C2 = c * c
+    mu = G * m[src]
+    jac = work[3:12]
+    apn = work[12:15]
+    eta = _to_jacobi_velocities(vel, m, src, jac)
+    for k in range(1, n):
+        x, y, z = jac[0, k], jac[1, k], jac[2, k]
+        wx, wy, wz, w2, A = _solve_vtilde(jac[3, k], jac[4, k], jac[5, k], work[17, k], C2)
+        B = (work[16, k] - 1.5 * w2) * mu / work[18, k] / C2
         rdotrdot = x * jac[3, k] + y * jac[4, k] + z * jac[5, k]
         vdx = jac[6, k] + B * x
         vdy = jac[7, k] + B * y
         vdz = jac[8, k] + B * z
         vdotvdot = wx * vdx + wy * vdy + wz * vdz
-        D = (vdotvdot - 3.0 * mu / (ri * ri * ri) * rdotrdot) / C2
+        D = (vdotvdot - work[19, k] * rdotrdot) / C2
         apn[0, k] = B * (1.0 - A) * x - A * jac[6, k] - D * wx
         apn[1, k] = B * (1.0 - A) * y - A * jac[7, k] - D * wy
         apn[2, k] = B * (1.0 - A) * z - A * jac[8, k] - D * wz
@@ -207,6 +251,16 @@ def gr_accelerations(pos, vel, m, G, src, c, acc, work):
     acc[0, i0] += sx * mi
     acc[1, i0] += sy * mi
     acc[2, i0] += sz * mi
+
+
+@jit
+def gr_accelerations(pos, vel, m, G, src, c, acc, work):
+    """acc (3, N) += the single-mass 1PN acceleration (module docstring) about ``src``.
+
+    ``work``: at least (:data:`GR_WORK_ROWS`, N) scratch.
+    """
+    gr_prepare(pos, m, G, src, work)
+    gr_accelerations_prepared(vel, m, G, src, c, acc, work)
 
 
 @jit

@@ -31,11 +31,14 @@ from numba.extending import overload
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.gr import (
+    GR_WORK_ROWS,
     MAX_ITERATIONS,
     gr_accelerations,
+    gr_accelerations_prepared,
     gr_energy,
     gr_potential_accelerations,
     gr_potential_energy,
+    gr_prepare,
 )
 from orbitsim.forces.gr_full import WORK_ROWS, gr_full_accelerations, gr_full_energy
 from orbitsim.forces.harmonics import harmonics_accelerations, harmonics_potential
@@ -48,8 +51,8 @@ __all__ = ["SCRATCH_ROWS", "add_position_forces", "add_velocity_forces", "force_
 #: Rows of the operator's own state: v at the start, the latest and the previous estimate of v at
 #: the end, the midpoint v, the acceleration there (3 rows each).
 _OP_ROWS = 15
-#: Rows of the scratch: the operator's, then the force's work rows (gr needs 15, gr_full 20).
-SCRATCH_ROWS = _OP_ROWS + max(15, WORK_ROWS)
+#: Rows of the scratch: the operator's, then the force's work rows (gr needs 20, gr_full 20).
+SCRATCH_ROWS = _OP_ROWS + max(GR_WORK_ROWS, WORK_ROWS)
 #: Implicit-midpoint iterations, and its test |dv|^2 / |v|^2 < eps^2 (REBOUNDx's).
 _MIDPOINT_ITERATIONS = MAX_ITERATIONS
 _EPS = np.finfo(np.float64).eps
@@ -81,6 +84,18 @@ def _position_term(term, pos, m, G, acc):
 
 def _velocity_term(term, pos, vel, m, G, com, acc, work):
     """acc += one velocity-dependent force at (pos, vel); ``com`` as the force reads it."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def _prepare_term(term, pos, m, G, work):
+    """What one velocity-dependent force computes from the positions alone, into ``work``, before an
+    operator evaluates it at several velocities (gr: :func:`~orbitsim.forces.gr.gr_prepare`;
+    nothing for the others)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def _prepared_velocity_term(term, pos, vel, m, G, com, acc, work):
+    """:func:`_velocity_term` after :func:`_prepare_term` at the same positions: the same bits."""
     raise NotImplementedError("called from jitted code only")
 
 
@@ -128,6 +143,21 @@ def _ol_velocity_term(term, pos, vel, m, G, com, acc, work):
     if kind is MigrationTerm:
         return lambda term, pos, vel, m, G, com, acc, work: migration_accelerations(pos, vel, m, term.taus, com, acc)
     return lambda term, pos, vel, m, G, com, acc, work: None
+
+
+@overload(_prepare_term, inline="always")
+def _ol_prepare_term(term, pos, m, G, work):
+    if _record(term) is GRTerm:
+        return lambda term, pos, m, G, work: gr_prepare(pos, m, G, term.source, work)
+    return lambda term, pos, m, G, work: None
+
+
+@overload(_prepared_velocity_term, inline="always")
+def _ol_prepared_velocity_term(term, pos, vel, m, G, com, acc, work):
+    if _record(term) is GRTerm:
+        return lambda term, pos, vel, m, G, com, acc, work: gr_accelerations_prepared(vel, m, G, term.source, term.c,
+                                                                                      acc, work)
+    return lambda term, pos, vel, m, G, com, acc, work: _velocity_term(term, pos, vel, m, G, com, acc, work)
 
 
 @overload(_com_for, inline="always")
@@ -259,7 +289,9 @@ def _implicit_midpoint(term, pos, vel, m, G, h, scratch):
     at v(0); at most 10 iterations).
 
     The centre of mass the force reads is that of the state before the step, as in REBOUNDx,
-    whose simulation particles keep their velocities until the operator ends.
+    whose simulation particles keep their velocities until the operator ends. The positions do
+    not move, so what the force computes from them alone is computed once (:func:`_prepare_term`:
+    ``gr``'s Newtonian sum and Jacobi positions), not at every iteration as in REBOUNDx.
     """
     n = pos.shape[1]
     v0, vf, vp, va, a = scratch[0:3], scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
@@ -270,12 +302,13 @@ def _implicit_midpoint(term, pos, vel, m, G, h, scratch):
             vf[k, i] = vel[k, i]
             va[k, i] = vel[k, i]
     com = _com_for(term, pos, vel, m)
+    _prepare_term(term, pos, m, G, work)
     for _ in range(_MIDPOINT_ITERATIONS):
         for k in range(3):
             for i in range(n):
                 vp[k, i] = vf[k, i]
                 a[k, i] = 0.0
-        _velocity_term(term, pos, va, m, G, com, a, work)
+        _prepared_velocity_term(term, pos, va, m, G, com, a, work)
         for k in range(3):
             for i in range(n):
                 vf[k, i] = v0[k, i] + h * a[k, i]

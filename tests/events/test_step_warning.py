@@ -19,7 +19,7 @@ from click.testing import CliRunner
 
 import orbitsim.events.sampled as sampled
 from orbitsim.cli.main import cli
-from orbitsim.events.timescales import orbit_timescales
+from orbitsim.events.timescales import PYTHON_MAX_N, orbit_timescales, orbit_timescales_python, timescales_of
 from orbitsim.scenario import scenario_from_dict
 from orbitsim.scenario_simulation import scenario_simulation
 
@@ -175,6 +175,50 @@ def test_timescales_are_the_pericentre_ones_ahead() -> None:
     tau_s, attractor_s, closest_s = np.empty(2), np.empty(2, dtype=np.int64), np.empty(2)
     orbit_timescales(pos, vel, m, G, 0.5**2, tau_s, attractor_s, closest_s)
     assert tau_s[1] == pytest.approx(math.sqrt(0.5**3 / (G * M)), rel=1e-12)
+
+
+def _random_states(seed: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A star, massive and massless bodies (two of equal mass) on bound and unbound orbits."""
+    rng = np.random.default_rng(seed)
+    m = np.concatenate([[1.0], rng.uniform(0.0, 1e-2, n - 1)])
+    m[rng.integers(1, n, size=max(1, n // 4))] = 0.0
+    m[-1] = m[-2] = 3e-3
+    pos = rng.normal(size=(3, n)) * rng.uniform(0.1, 5.0, size=n)
+    vel = rng.normal(size=(3, n)) * rng.uniform(0.0, 2.0, size=n)
+    return pos, vel, m
+
+
+@pytest.mark.parametrize("eps2", [0.0, 0.01])
+@pytest.mark.parametrize("seed", range(6))
+def test_the_interpreted_timescales_are_the_compiled_bits(seed: int, eps2: float) -> None:
+    """The interpreted check (what a run of a few bodies uses, nothing to compile) gives the compiled
+    kernel's outputs bit for bit: same operations in the same order on IEEE doubles."""
+    n = [2, 3, 5, 9, 17, PYTHON_MAX_N][seed]
+    pos, vel, m = _random_states(seed, n)
+    outputs = []
+    for timescales in (orbit_timescales, orbit_timescales_python):
+        tau, attractor, closest = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n)
+        timescales(pos, vel, m, 1.0, eps2, tau, attractor, closest)
+        outputs.append((tau.tobytes(), attractor.tobytes(), closest.tobytes()))
+    assert outputs[0] == outputs[1]
+    assert np.isfinite(np.frombuffer(outputs[0][0])).any()  # the states exercise the timescale, not only inf
+
+
+def test_timescales_of_goes_compiled_for_many_bodies_and_for_a_non_finite_state(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the interpreter is not used: above PYTHON_MAX_N bodies, and for a state with a nan
+    (math.sqrt of a nan must not raise)."""
+    import orbitsim.events.timescales as timescales
+
+    calls: list[str] = []
+    monkeypatch.setattr(timescales, "orbit_timescales", lambda *a: calls.append("compiled"))
+    monkeypatch.setattr(timescales, "orbit_timescales_python", lambda *a: calls.append("python"))
+    for n, poison in [(PYTHON_MAX_N, False), (PYTHON_MAX_N + 1, False), (3, True)]:
+        pos, vel, m = _random_states(1, n)
+        if poison:
+            vel[1, 2] = np.nan
+        timescales_of(pos, vel, m, 1.0, 0.0, np.empty(n), np.empty(n, dtype=np.int64), np.empty(n))
+    assert calls == ["python", "compiled", "compiled"]
 
 
 def test_the_pairs_examined_stay_within_the_budget(monkeypatch: pytest.MonkeyPatch) -> None:
