@@ -139,8 +139,15 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
         click.echo("", err=True)
     counts = ", ".join(f"{int(np.sum(data['status'] == i))} {name}" for i, name in enumerate(data["status_names"]))
     click.echo(f"wrote {target} and {directory / 'map.png'} ({plan.n_pixels} pixels: {counts})")
-    if int(np.sum(data["unreliable"])):
-        warn(f"{int(np.sum(data['unreliable']))} pixels have |dE/E| > {max_energy_error:g} (hatched)")
+    unreliable = int(np.sum(data["unreliable"]))
+    if unreliable:
+        errors = data["indicators"]["energy_error"][data["unreliable"]]
+        why = ""
+        if unreliable > 1 and float(np.max(errors)) == float(np.min(errors)):
+            # a massless varied body carries no energy: the error is the massive bodies', one number for all
+            why = (f"; every one has |dE/E| = {float(errors[0]):.3g}, the massive bodies' error, which the varied "
+                   f"massless body does not change: a smaller dt or a larger --max-energy-error sets the bar")
+        warn(f"{unreliable} pixels have |dE/E| > {max_energy_error:g} (hatched){why}")
 
 
 def _number_or_text(text: str) -> float | str:

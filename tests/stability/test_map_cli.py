@@ -215,3 +215,13 @@ def test_a_killed_dask_worker_loses_no_pixel(scenario, tmp_path):
     a, b = _grids(local / "map.h5"), _grids(out / "map.h5")
     for name in a:
         assert np.array_equal(a[name], b[name], equal_nan=True), name
+
+
+def test_a_massless_axis_body_gets_told_why_every_pixel_is_unreliable(scenario: Path, tmp_path: Path) -> None:
+    # a bar below the massive bodies' own |dE/E| flags every pixel; the note must say it is one shared number
+    code, _, err = _map([str(scenario), *AXES, "--max-energy-error", "1e-16", "-o", str(tmp_path / "m")])
+    assert code == 0
+    with h5py.File(tmp_path / "m" / "map.h5", "r") as f:
+        assert f["unreliable"][()].all()
+    assert "6 pixels have |dE/E| > 1e-16 (hatched); every one has" in err
+    assert "the massive bodies' error" in err
