@@ -103,24 +103,26 @@ def test_radau_weights_integrate_degree_14_exactly() -> None:
         assert abs(np.sum(W * H**k) - 2.0 / (k + 1)) < 4e-16 * 2  # weights for an interval of length 2
 
 
-@pytest.mark.parametrize("t0", [0.0, 1e6], ids=["t0=0", "t0=1e6"])
-def test_regular_case_agrees_with_rebound_at_every_sample(t0: float) -> None:
-    """REBOUND's test_megno regular systems: star m = 1; m = 1e-3 at a = 1.5 and 15, e = 0.1, i = 0.1."""
+@pytest.mark.parametrize(("t0", "span"), [
+    (0.0, 1e4), (1e6, 1e3), pytest.param(1e6, 1e4, marks=pytest.mark.slow)], ids=["t0=0", "t0=1e6", "t0=1e6-long"])
+def test_regular_case_agrees_with_rebound_at_every_sample(t0: float, span: float) -> None:
+    """REBOUND's test_megno regular systems (test_ias15, and test_initial_t_ias15 from t = 1e6):
+    star m = 1; m = 1e-3 at a = 1.5 and 15, e = 0.1, i = 0.1."""
     s = _system(chaotic=False, t0=t0)
-    span = 1e4 if t0 == 0.0 else 1e3  # the t0 = 1e6 variant checks the clock's offset, over a shorter span
     times = t0 + np.linspace(0.0, span, 51)[1:]
     ours, our_var, work = _sampled(s, times, t0)
     theirs, their_var = _rebound_samples(s.sim, times)
-    # The issue's bound: the two differ only in the Newtonian force sum's order (round-off), which
-    # a regular orbit carries linearly; measured 1e-13 (MEGNO) and 3e-12 (mLCE, a small slope).
-    assert np.all(np.abs(ours - theirs) <= 1e-10 * np.abs(theirs))
+    # The issue's bound, 1e-10: the two differ only in the Newtonian force sum's order (round-off),
+    # which a regular orbit carries linearly (measured at t0 = 0: MEGNO 3e-13, mLCE 5e-12, the
+    # variational particle 3e-11). From t0 = 1e6 the clock's resolution (ulp 1.2e-10) is the floor: each
+    # interval's last step, t_target - t, differs between the codes by that much, and so do the bodies
+    # (measured over 1e4: mLCE 9e-11, the variational particle 3e-9).
+    tol_indicators, tol_var = (1e-10, 1e-10) if t0 == 0.0 else (1e-9, 1e-8)
+    assert np.all(np.abs(ours - theirs) <= tol_indicators * np.abs(theirs))
     scale = np.max(np.abs(their_var), axis=(1, 2))
-    # At t0 = 1e6 the clock's resolution (ulp 1.2e-10) is the floor: each interval's last step, t_target
-    # - t, differs between the codes by that much, and the bodies too (2e-10 of the state, measured).
-    tol = 1e-10 if t0 == 0.0 else 1e-8
-    assert np.all(np.max(np.abs(our_var - their_var), axis=(1, 2)) <= tol * scale)
+    assert np.all(np.max(np.abs(our_var - their_var), axis=(1, 2)) <= tol_var * scale)
     assert work.counts[COUNT_ACCEPTED] == s.sim.steps_done  # the same steps
-    if t0 == 0.0:  # REBOUND's own assertions at t = 1e4
+    if span == 1e4:  # REBOUND's own assertions
         assert abs(ours[-1, 0] - 2.0) < 0.2 and abs(ours[-1, 1]) < 1e-3
 
 
