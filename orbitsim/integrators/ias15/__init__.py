@@ -1,8 +1,12 @@
 """IAS15: the adaptive 15th-order Gauss-Radau integrator (Rein & Spiegel 2015), REBOUND's default.
 
 The package: :mod:`.core`, the step (predictor-corrector, error estimate, step control,
-prediction); :mod:`.tables`, the Gauss-Radau constants; this module, the scheme's record
-(:data:`IAS15`) and its contract with the run loop, which for an adaptive scheme reads:
+prediction); :mod:`.tables`, the Gauss-Radau constants (and the quadrature weights MEGNO uses);
+:mod:`.tangent`, the step with first-order variational equations and MEGNO, as REBOUND's IAS15
+integrates its variational particles (the tangent components ride in the same predictor-corrector
+and count in its convergence test; the step control reads the bodies only; the MEGNO integrand is
+summed with the Radau weights over the nodes); this module, the scheme's record (:data:`IAS15`) and
+its contract with the run loop, which for an adaptive scheme reads:
 
 * the run's grid is its output grid. ``dt`` given to :func:`run` is the sampling interval: the
   "step" ``n`` of a trace is the sample at time ``t0 + n * dt`` (the last one at ``t_end`` when
