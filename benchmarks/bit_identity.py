@@ -144,18 +144,22 @@ def main() -> int:
     if args.against:
         before = json.loads(args.against.read_text())
         changed = []
+        # a run the baseline has no hashes for (a scenario bundled since) is new, not changed: it is listed
+        new = sorted(set(now) - set(before))
         for name in sorted(set(before) | set(now)):
-            if args.only and name not in now:
+            if (args.only and name not in now) or name in new:
                 continue
             a, b = before.get(name), now.get(name)
             if a != b:
                 keys = sorted(k for k in set(a or {}) | set(b or {}) if (a or {}).get(k) != (b or {}).get(k))
                 changed.append(f"{name}: {', '.join(keys[:8])}" + (" ..." if len(keys) > 8 else ""))
-        total = sum(len(v) - 1 for v in now.values())
+        total = sum(len(v) - 1 for name, v in now.items() if name not in new)
+        if new:
+            print(f"new since the baseline (no hashes to compare): {', '.join(new)}")
         if changed:
-            print(f"{len(changed)} of {len(now)} runs changed:\n  " + "\n  ".join(changed))
+            print(f"{len(changed)} of {len(now) - len(new)} runs changed:\n  " + "\n  ".join(changed))
             return 1
-        print(f"bit-identical: {len(now)} runs, {total} hashes")
+        print(f"bit-identical: {len(now) - len(new)} runs, {total} hashes")
     return 0
 
 
