@@ -153,6 +153,18 @@ def set_num_threads(n: int | None) -> int:
     return int(numba.get_num_threads())
 
 
+def launch_threads() -> int:
+    """Start Numba's threading layer (once per process; later calls do nothing); returns the thread count.
+
+    Machine code of a ``prange`` kernel loaded from the on-disk cache calls the layer's scheduler
+    (``allocate_sched``), a symbol the loader resolves only once the layer has started. Compiling a
+    parallel kernel starts it; loading one from the cache does not, and a process whose first parallel
+    call is a cached kernel aborts with "LLVM ERROR: Symbol not found: allocate_sched". Every front door
+    to a ``prange`` kernel calls this (or :func:`set_num_threads`, which does) before the kernel.
+    """
+    return int(numba.get_num_threads())
+
+
 # -- the kernels' stop flag --------------------------------------------------------------------------
 
 #: The C symbol of :data:`_STOP_FLAG`, by which compiled code finds it.

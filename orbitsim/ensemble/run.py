@@ -64,8 +64,10 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
     -------
     EnsembleResult
     """
+    from orbitsim._jit import launch_threads  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.ensemble.kernels import run_ensemble_wh  # noqa: PLC0415 - lazy: loads numba
 
+    launch_threads()  # before a cached prange kernel is loaded (see launch_threads)
     m = np.ascontiguousarray(masses, dtype=np.float64)
     if m.ndim != 2 or m.shape[1] < 2:
         raise ValueError(f"ensemble: masses must have shape (K, N) with N >= 2, got {m.shape}")

@@ -3,6 +3,9 @@ count, and a system that stops (escape, collision, divergence) stops alone."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numba
 import numpy as np
 import pytest
@@ -147,3 +150,22 @@ def test_the_variational_ensemble_gets_the_bits_of_a_single_system_chaos_run():
         assert result.indicators[k, MEGNO] == megno_value(megno, N_STEPS * DT)
         assert result.indicators[k, LYAPUNOV] == lyapunov(megno)
     assert 1.5 < result.indicators[0, MEGNO] < 3.0  # the giants are regular: MEGNO near 2
+
+
+def test_a_fresh_process_whose_first_parallel_call_is_a_cached_ensemble_runs() -> None:
+    # the library's front door, not the CLI (which sets the thread count first): a process whose first
+    # parallel call loaded a cached ensemble kernel was once seen aborting with "LLVM ERROR: Symbol not
+    # found: allocate_sched" (not reproduced on demand since); run_ensemble now starts the threading layer
+    script = (
+        "import numpy as np\n"
+        "from orbitsim.ensemble import run_ensemble\n"
+        "m = np.array([[1.0, 1e-3], [1.0, 1e-3]])\n"
+        "x = np.zeros((2, 3, 2)); x[:, 0, 1] = 1.0\n"
+        "v = np.zeros((2, 3, 2)); v[:, 1, 1] = 1.0\n"
+        "r = run_ensemble(m, x, v, G=1.0, dt=0.01, n_steps=3)\n"
+        "print('ran', len(r.status))\n"
+    )
+    for _ in range(2):  # the first may compile (which starts the layer); the second loads from the cache
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr[-500:]
+        assert done.stdout.strip() == "ran 2"
