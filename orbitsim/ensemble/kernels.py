@@ -41,7 +41,7 @@ import math
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_parallel_exact
+from orbitsim._jit import jit, jit_inline, jit_parallel_exact
 from orbitsim.chaos.megno import MegnoState, lyapunov, megno_value
 from orbitsim.chaos.step import megno_after_step
 from orbitsim.ensemble.status import (
@@ -88,6 +88,14 @@ def jacobi_elements_ae(jpos, jvel, mu, i):
     h2 = hx * hx + hy * hy + hz * hz
     e2 = 1.0 + 2.0 * energy * h2 / (k * k)
     return -k / (2.0 * energy), math.sqrt(e2) if e2 > 0.0 else 0.0
+
+
+@jit_inline
+def track_orbit(jpos, jvel, mu, watch, a0, max_e, delta_a):
+    """``max_e`` and ``delta_a`` after a step: the largest Jacobi e of body ``watch`` and |a - a0| / |a0|."""
+    a, e = jacobi_elements_ae(jpos, jvel, mu, watch)
+    spread = abs(a - a0) / abs(a0)
+    return (e if e > max_e else max_e), (spread if spread > delta_a else delta_a)
 
 
 @jit
@@ -171,12 +179,7 @@ def run_system(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_col
             jpos[c, 0] += h * jvel[c, 0]  # the centre of mass drifts
         interaction_kick(jpos, jvel, m, G, eps2, dt, JACOBI, weights, mu, ipos, iacc, None)
         done += 1
-        a, e = jacobi_elements_ae(jpos, jvel, mu, watch)
-        if e > max_e:
-            max_e = e
-        spread = abs(a - a0) / abs(a0)
-        if spread > delta_a:
-            delta_a = spread
+        max_e, delta_a = track_orbit(jpos, jvel, mu, watch, a0, max_e, delta_a)
         status = _stop_reason(ipos, radii, escape_r2, check_collisions)
         if status != COMPLETE:
             break
@@ -225,12 +228,7 @@ def run_system_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps,
             status = DIVERGED
             break
         megno, _ = megno_after_step(megno, pos, m, force, dpos, dvel, dacc, t_start + done * dt, dt)
-        a, e = jacobi_elements_ae(jpos, jvel, mu, watch)
-        if e > max_e:
-            max_e = e
-        spread = abs(a - a0) / abs(a0)
-        if spread > delta_a:
-            delta_a = spread
+        max_e, delta_a = track_orbit(jpos, jvel, mu, watch, a0, max_e, delta_a)
         status = _stop_reason(pos, radii, escape_r2, check_collisions)
         if status != COMPLETE:
             break
