@@ -200,13 +200,10 @@ def interaction_kick_tangent(jpos, jvel, djpos, djvel, m, G, eps2, h, weights, m
     jacobi_to_inertial(djpos, weights, dipos)
     tangent_accelerations(ipos, m, G, eps2, dipos, dacc, SKIP_PAIR_0_1)
     add_tangent_kick_forces(force, ipos, m, dipos, dacc)
+    # to Jacobi, in place: columns 1.. are the same arithmetic as the bodies' kick; column 0 (the centre of
+    # mass) is not read, and megno_after_step rewrites the whole array
+    inertial_to_jacobi(dacc, weights, dacc)
     n = jpos.shape[1]
-    for c in range(3):
-        com = dacc[c, 0]
-        for i in range(1, n):
-            rel = dacc[c, i] - com
-            dacc[c, i] = rel
-            com = com + weights[i] * rel
     for i in range(1, n):
         if i > 1:
             x, y, z = jpos[0, i], jpos[1, i], jpos[2, i]
