@@ -35,7 +35,8 @@ def _as_systems(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndar
 def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float, dt: float,
                  n_steps: int, t_start: float = 0.0, escape_distance: float = np.inf,
                  radii: np.ndarray | None = None, watch: int = 1,
-                 variation: tuple[np.ndarray, np.ndarray] | None = None) -> EnsembleResult:
+                 variation: tuple[np.ndarray, np.ndarray] | None = None,
+                 shared_massive: bool = True) -> EnsembleResult:
     """Run K systems of N bodies with the Wisdom-Holman map (Jacobi coordinates, no corrector).
 
     Parameters
@@ -59,6 +60,11 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
     variation : pair of (K, 3, N) arrays, optional
         Initial tangent vectors (dr, dv): with them every system carries its variational equations
         (the Wisdom-Holman tangent map) and the ``megno`` and ``lyapunov`` columns are filled.
+    shared_massive : bool
+        With ``variation``, where the last body is massless, watched, and the other bodies are the same
+        in every system (a map over a test particle), step those once for all systems
+        (:mod:`orbitsim.ensemble.restricted`: the same bits, a fraction of the time). False: always
+        the whole-system kernel (tests compare the two).
 
     Returns
     -------
@@ -113,8 +119,21 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
         if not (np.isfinite(dpos).all() and np.isfinite(dvel).all()) or not (np.abs(dpos).sum(axis=(1, 2)) +
                                                                              np.abs(dvel).sum(axis=(1, 2)) > 0).all():
             raise ValueError("ensemble: every system's initial variation must be finite and non-zero")
+        force = make_force(float(G), 0.0, n)
+        if shared_massive:
+            from orbitsim.ensemble.restricted import (  # noqa: PLC0415 - lazy: loads numba
+                restricted_applies,
+                run_restricted_variational,
+            )
+
+            if restricted_applies(m, pos, vel, r, dpos, dvel, watch):
+                rpos, rvel = pos.copy(), vel.copy()
+                if run_restricted_variational(rpos, rvel, dpos, dvel, m, force, float(dt), float(t_start),
+                                              np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch),
+                                              weights, mu, np.zeros(0), status, steps, out):
+                    return EnsembleResult(status, steps, out, rpos, rvel)
         scratch_t = np.zeros((k, TANGENT_SCRATCH_ROWS, 3, n))
-        run_ensemble_variational(pos, vel, dpos, dvel, m, make_force(float(G), 0.0, n), float(dt), float(t_start),
+        run_ensemble_variational(pos, vel, dpos, dvel, m, force, float(dt), float(t_start),
                                  np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch), weights, mu,
                                  scratch_t, np.zeros(0), status, steps, out)
         return EnsembleResult(status, steps, out, pos, vel)

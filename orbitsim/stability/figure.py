@@ -44,8 +44,9 @@ def draw_map(path: str | os.PathLike, data: dict[str, Any], indicator: str) -> N
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415 - lazy: as above
+    from matplotlib.collections import PolyCollection  # noqa: PLC0415 - lazy: as above
     from matplotlib.colors import ListedColormap, LogNorm  # noqa: PLC0415 - lazy: as above
-    from matplotlib.patches import Patch, Rectangle  # noqa: PLC0415 - lazy: as above
+    from matplotlib.patches import Patch  # noqa: PLC0415 - lazy: as above
 
     grid = np.asarray(data["indicators"][indicator], dtype=np.float64)
     status = np.asarray(data["status"])
@@ -82,9 +83,11 @@ def draw_map(path: str | os.PathLike, data: dict[str, Any], indicator: str) -> N
                 ax.pcolormesh(xe, ye, np.where(hit, 1.0, np.nan), cmap=ListedColormap([colour]), shading="flat")
                 handles.append(Patch(color=colour, label=f"{name} ({int(hit.sum())})"))
         if unreliable.any():
-            for iy, ix in zip(*np.nonzero(unreliable), strict=True):
-                ax.add_patch(Rectangle((xe[ix], ye[iy]), xe[ix + 1] - xe[ix], ye[iy + 1] - ye[iy], fill=False,
-                                       hatch="///", edgecolor="black", linewidth=0.0))
+            iy, ix = np.nonzero(unreliable)  # one collection: a patch per pixel took seconds on a 200 x 200 map
+            cells = np.stack([np.column_stack([xe[ix], ye[iy]]), np.column_stack([xe[ix + 1], ye[iy]]),
+                              np.column_stack([xe[ix + 1], ye[iy + 1]]), np.column_stack([xe[ix], ye[iy + 1]])], axis=1)
+            ax.add_collection(PolyCollection(cells, facecolors="none", edgecolors="black", linewidths=0.0,
+                                             hatch="///"))
             handles.append(Patch(facecolor="none", edgecolor="black", hatch="///",
                                  label=f"|dE/E| > {data['max_energy_error']:g} ({int(unreliable.sum())})"))
         if y["log"]:
