@@ -70,11 +70,14 @@ def rebound_map(n: int, years: float) -> tuple[float, np.ndarray]:
     return time.perf_counter() - started, np.array(megno).reshape(n, n)
 
 
-def orbitsim_map(n: int, years: float, out: Path, indicator: str) -> tuple[float, float]:
-    """Wall time of the whole ``orbitsim map`` command (warm cache) and its kernels' time (map.h5)."""
+def orbitsim_map(n: int, years: float, out: Path, indicator: str, warm: bool = True) -> tuple[float, float]:
+    """Wall time of the whole ``orbitsim map`` command (warm cache: a first run fills it unless ``warm`` is
+    False) and its kernels' time (map.h5)."""
     command = [sys.executable, "-m", "orbitsim", "map", "jupiter_saturn", "--x", f"planet.a=5.8:9.0:{n}",
                "--y", f"planet.e=0:0.38:{n}", "--t-end", repr(years * YEAR), "--indicator", indicator, "--quiet"]
-    subprocess.run([*command, "-o", str(out / "warm")], check=True, capture_output=True)  # compile / load cache
+    out.mkdir(parents=True, exist_ok=True)
+    if warm:
+        subprocess.run([*command, "-o", str(out / "warm")], check=True, capture_output=True)  # compile / load cache
     started = time.perf_counter()
     subprocess.run([*command, "-o", str(out / "timed")], check=True, capture_output=True)
     wall = time.perf_counter() - started
@@ -117,7 +120,13 @@ def run_ensemble_probe(group: Any) -> dict[str, Any]:
         out = Path(tmp)
         rebound_s, _ = rebound_map(p["map_n"], p["years"])
         orbitsim_s, kernel_s = orbitsim_map(p["map_n"], p["years"], out, p["indicator"])
+        large = p.get("large_map_n", 0)
+        # the large map alone: REBOUND's time for it is the small map's per pixel times its pixels
+        large_s, large_kernel_s = (orbitsim_map(large, p["years"], out / "large", p["indicator"], warm=False) if large
+                                  else (0.0, 0.0))
     ns = ensemble_step_ns(p["k"], p["steps"])
     return {"map_n": p["map_n"], "years": p["years"], "indicator": p["indicator"], "rebound_map_s": rebound_s,
             "orbitsim_map_s": orbitsim_s, "orbitsim_kernel_s": kernel_s, "k": p["k"], "steps": p["steps"],
-            "ensemble_ns": ns["ensemble"], "single_ns": ns["single"], "rebound_ns": ns["rebound"]}
+            "ensemble_ns": ns["ensemble"], "single_ns": ns["single"], "rebound_ns": ns["rebound"],
+            "large_map_n": large, "large_map_s": large_s, "large_kernel_s": large_kernel_s,
+            "large_rebound_estimate_s": rebound_s * (large / p["map_n"]) ** 2}

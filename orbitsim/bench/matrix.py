@@ -102,7 +102,7 @@ _GROUP_KEYS: dict[str, tuple[str, ...]] = {
     "memory": ("n", "steps", "trace_n", "trace_samples", "trace_every", "limit_mb"),
     "adaptive": ADAPTIVE_KEYS,
     "trace": TRACE_KEYS,
-    "ensemble": ("map_n", "years", "indicator", "k", "steps"),
+    "ensemble": ("map_n", "years", "indicator", "k", "steps", "large_map_n"),
 }
 _COMMON_GROUP_KEYS = ("name", "kind", "repeats", "warmup", "description")
 
@@ -316,7 +316,8 @@ def _read_ensemble(r: Reader, g: Mapping[str, Any], path: str) -> dict[str, Any]
             "years": r.number(g, "years", path, 1e4),
             "indicator": g.get("indicator", "megno"),
             "k": r.integer(g, "k", path, 4096, minimum=1),
-            "steps": r.integer(g, "steps", path, 2000, minimum=1)}
+            "steps": r.integer(g, "steps", path, 2000, minimum=1),
+            "large_map_n": r.integer(g, "large_map_n", path, 0, minimum=0)}
 
 
 _READERS: dict[str, Callable[[Reader, Mapping[str, Any], str], dict[str, Any]]] = {

@@ -146,6 +146,11 @@ def _probes(doc: dict[str, Any]) -> list[str]:
                        f"on Pool(2) {_time(p['rebound_map_s'])}; orbitsim map ({p['indicator']}) "
                        f"{_time(p['orbitsim_map_s'])} for the whole command (kernels {_time(p['orbitsim_kernel_s'])}); "
                        f"REBOUND / orbitsim = {p['rebound_map_s'] / p['orbitsim_map_s']:.2f}")
+            if p.get("large_map_n"):
+                out.append(f"- {p['large_map_n']} x {p['large_map_n']} map, one file: orbitsim map "
+                           f"{_time(p['large_map_s'])} for the whole command (kernels {_time(p['large_kernel_s'])}; "
+                           f"target <= 60 s); REBOUND's estimate (its {p['map_n']} x {p['map_n']} time per pixel) "
+                           f"{_time(p['large_rebound_estimate_s'])}")
             out.append(f"- ns per system-step, 4 bodies: ensemble of K = {p['k']} {p['ensemble_ns']:.0f}, one system "
                        f"(wisdom_holman, 1 thread) {p['single_ns']:.0f}, REBOUND WHFast {p['rebound_ns']:.0f}\n")
         elif p["kind"] == "sampling":

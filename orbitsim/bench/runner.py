@@ -53,6 +53,7 @@ def quick_matrix(matrix: BenchMatrix) -> BenchMatrix:
         elif g.kind == "ensemble":
             p["map_n"], p["years"], p["k"], p["steps"] = min(p["map_n"], 8), p["years"] / 10.0, min(p["k"], 512), \
                 max(1, p["steps"] // 10)
+            p["large_map_n"] = 0  # the 200 x 200 map takes minutes: full runs only
         elif g.kind in ("adaptive", "trace"):
             p["t_end"] = {n: t / 10.0 for n, t in p["t_end"].items()}
         groups.append(dataclasses.replace(g, repeats=min(g.repeats, 3), warmup=min(g.warmup, 1), params=p))

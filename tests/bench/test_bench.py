@@ -246,11 +246,14 @@ def test_the_ensemble_kind_reads_and_shrinks_for_quick():
     from orbitsim.bench.matrix import matrix_from_dict
     from orbitsim.bench.runner import quick_matrix
 
-    matrix = matrix_from_dict({"groups": [{"name": "ens", "kind": "ensemble", "map_n": 20, "k": 4096}]})
+    matrix = matrix_from_dict({"groups": [{"name": "ens", "kind": "ensemble", "map_n": 20, "k": 4096,
+                                           "large_map_n": 200}]})
     params = matrix.groups[0].params
     assert (params["map_n"], params["years"], params["k"], params["steps"]) == (20, 1e4, 4096, 2000)
+    assert params["large_map_n"] == 200
     quick = quick_matrix(matrix).groups[0].params
     assert (quick["map_n"], quick["years"], quick["k"], quick["steps"]) == (8, 1e3, 512, 200)
+    assert quick["large_map_n"] == 0  # minutes: never in --quick
 
 
 @pytest.mark.slow
@@ -259,7 +262,9 @@ def test_the_ensemble_probe_times_both_codes():
 
     from orbitsim.bench.ensemble import run_ensemble_probe
 
-    group = SimpleNamespace(params={"map_n": 2, "years": 10.0, "indicator": "max_e", "k": 4, "steps": 10})
+    group = SimpleNamespace(params={"map_n": 2, "years": 10.0, "indicator": "max_e", "k": 4, "steps": 10,
+                                    "large_map_n": 3})
     result = run_ensemble_probe(group)
-    for key in ("rebound_map_s", "orbitsim_map_s", "orbitsim_kernel_s", "ensemble_ns", "single_ns", "rebound_ns"):
+    for key in ("rebound_map_s", "orbitsim_map_s", "orbitsim_kernel_s", "ensemble_ns", "single_ns", "rebound_ns",
+                "large_map_s", "large_rebound_estimate_s"):
         assert result[key] > 0.0, key
