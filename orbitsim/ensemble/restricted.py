@@ -69,7 +69,10 @@ R_HALF_COM, R_HALF_DCOM = 12, 15  # Jacobi column 0 (and its variation) after th
 R_ACC_COM, R_DACC_COM = 18, 21  # centres of mass of the Jacobi transform of the kick's (tangent) accelerations
 R_END_COM, R_END_VCOM, R_END_DCOM, R_END_DVCOM = 24, 27, 30, 33  # Jacobi column 0 at the end
 R_STATUS = 36  # the massive bodies' stop reason (COMPLETE, ...), or -1: a Kepler failure in the step
-R_VECTORS = 37
+# the massive bodies' part of deltad_delta's two sums (body by body, from 0: a pixel never rescaled starts
+# from them) and of rescale_power_of_two's |delta|^2, unscaled
+R_DELTAD_M, R_DELTA2_M, R_NORM2_M = 37, 38, 39
+R_VECTORS = 40
 #: The (3, q) blocks after R_VECTORS, in this order.
 V_KICK_POS, V_KICK_DPOS, V_POS, V_VEL, V_DPOS, V_DVEL, V_DACC = range(7)
 N_VECTOR_BLOCKS = 7
@@ -164,6 +167,24 @@ def massive_block(pos, vel, dpos, dvel, m, force, dt, weights, mu, scratch, esca
                 norm2 += dpos[c, i] * dpos[c, i] + dvel[c, i] * dvel[c, i]
         if not norm2 < SHARED_NORM2_LIMIT:
             return s + 1, False
+        rec[s, R_NORM2_M] = norm2
+        deltad = 0.0
+        delta2 = 0.0
+        for i in range(q):  # deltad_delta's first q bodies, in its order
+            deltad += dvel[0, i] * dpos[0, i]
+            deltad += dvel[1, i] * dpos[1, i]
+            deltad += dvel[2, i] * dpos[2, i]
+            deltad += dacc[0, i] * dvel[0, i]
+            deltad += dacc[1, i] * dvel[1, i]
+            deltad += dacc[2, i] * dvel[2, i]
+            delta2 += dpos[0, i] * dpos[0, i]
+            delta2 += dpos[1, i] * dpos[1, i]
+            delta2 += dpos[2, i] * dpos[2, i]
+            delta2 += dvel[0, i] * dvel[0, i]
+            delta2 += dvel[1, i] * dvel[1, i]
+            delta2 += dvel[2, i] * dvel[2, i]
+        rec[s, R_DELTAD_M] = deltad
+        rec[s, R_DELTA2_M] = delta2
         status = _stop_reason(pos, radii, escape_r2, check_collisions)
         rec[s, R_STATUS] = status
         if status != COMPLETE:
@@ -316,27 +337,31 @@ def pixel_block(tp, tv, tdp, tdv, jp, jv, djp, djv, q, m, G, eps2, dt, mu_t, mu_
         t = t_start + (step0 + s + 1) * dt
         dax, day, daz = _tangent_row(tp[0, 0], tp[1, 0], tp[2, 0], tdp[0, 0], tdp[1, 0], tdp[2, 0], rec, s, V_POS,
                                      V_DPOS, q, m, G, eps2, scale)
-        deltad = 0.0
-        delta2 = 0.0
-        for i in range(q):
-            ex, ey, ez = (scale * _get(rec, s, V_DPOS, q, 0, i), scale * _get(rec, s, V_DPOS, q, 1, i),
-                          scale * _get(rec, s, V_DPOS, q, 2, i))
-            fx, fy, fz = (scale * _get(rec, s, V_DVEL, q, 0, i), scale * _get(rec, s, V_DVEL, q, 1, i),
-                          scale * _get(rec, s, V_DVEL, q, 2, i))
-            gx, gy, gz = (scale * _get(rec, s, V_DACC, q, 0, i), scale * _get(rec, s, V_DACC, q, 1, i),
-                          scale * _get(rec, s, V_DACC, q, 2, i))
-            deltad += fx * ex
-            deltad += fy * ey
-            deltad += fz * ez
-            deltad += gx * fx
-            deltad += gy * fy
-            deltad += gz * fz
-            delta2 += ex * ex
-            delta2 += ey * ey
-            delta2 += ez * ez
-            delta2 += fx * fx
-            delta2 += fy * fy
-            delta2 += fz * fz
+        if halvings == 0:  # scale 1: the massive part is the record's, the same bits
+            deltad = rec[s, R_DELTAD_M]
+            delta2 = rec[s, R_DELTA2_M]
+        else:
+            deltad = 0.0
+            delta2 = 0.0
+            for i in range(q):
+                ex, ey, ez = (scale * _get(rec, s, V_DPOS, q, 0, i), scale * _get(rec, s, V_DPOS, q, 1, i),
+                              scale * _get(rec, s, V_DPOS, q, 2, i))
+                fx, fy, fz = (scale * _get(rec, s, V_DVEL, q, 0, i), scale * _get(rec, s, V_DVEL, q, 1, i),
+                              scale * _get(rec, s, V_DVEL, q, 2, i))
+                gx, gy, gz = (scale * _get(rec, s, V_DACC, q, 0, i), scale * _get(rec, s, V_DACC, q, 1, i),
+                              scale * _get(rec, s, V_DACC, q, 2, i))
+                deltad += fx * ex
+                deltad += fy * ey
+                deltad += fz * ez
+                deltad += gx * fx
+                deltad += gy * fy
+                deltad += gz * fz
+                delta2 += ex * ex
+                delta2 += ey * ey
+                delta2 += ez * ez
+                delta2 += fx * fx
+                delta2 += fy * fy
+                delta2 += fz * fz
         deltad += tdv[0, 0] * tdp[0, 0]
         deltad += tdv[1, 0] * tdp[1, 0]
         deltad += tdv[2, 0] * tdp[2, 0]
@@ -351,7 +376,13 @@ def pixel_block(tp, tv, tdp, tdv, jp, jv, djp, djv, q, m, G, eps2, dt, mu_t, mu_
         delta2 += tdv[2, 0] * tdv[2, 0]
         dY = dt * 2.0 * (t - megno.initial_t) * (deltad / delta2)
         megno = megno_update(megno, t, dY, dt)
-        while True:  # rescale_power_of_two over the whole vector, components outermost
+        test2 = 0.0
+        for c in range(3):
+            test2 += tdp[c, 0] * tdp[c, 0] + tdv[c, 0] * tdv[c, 0]
+        # |delta|^2 in another order is within 1e-14 of rescale_power_of_two's sum: only a vector near the
+        # bar needs that exact sum (a nan skips both, as it skips the exact test)
+        near_bar = rec[s, R_NORM2_M] * (scale * scale) + test2 > RESCALE_ABOVE * (1.0 - 1e-9)
+        while near_bar:  # rescale_power_of_two over the whole vector, components outermost
             scale = 2.0 ** (-200 * halvings)
             norm2 = 0.0
             for c in range(3):
