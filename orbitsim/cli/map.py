@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from orbitsim.cli.errors import fail, reports_errors, warn
 from orbitsim.cli.options import threads_option
+
+if TYPE_CHECKING:
+    from orbitsim.stability.plan import MapPlan
 
 #: ``orbitsim.stability.plan.INDICATORS``, written out so that the CLI imports only click at start-up
 #: (tests/stability checks that the two agree).
@@ -132,6 +136,7 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
                  "scenario_name": base.name, "scenario_source": str(base.source),
                  "command": " ".join(["orbitsim", *sys.argv[1:]]), "time_unit": _time_unit(base.units, base.G)}
         attrs.update({f"provenance_{k}": v for k, v in provenance().items()})
+        _hint_shared_massive(plan)
         progress = None if quiet else (lambda line: click.echo(f"\r{line}   ", err=True, nl=False))
         data = run_map(plan, directory, max_energy_error=max_energy_error, indicator=indicator, attrs=attrs,
                        scheduler=scheduler, progress=progress)
@@ -148,6 +153,20 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
             why = (f"; every one has |dE/E| = {float(errors[0]):.3g}, the massive bodies' error, which the varied "
                    f"massless body does not change: a smaller dt or a larger --max-energy-error sets the bar")
         warn(f"{unreliable} pixels have |dE/E| > {max_energy_error:g} (hatched){why}")
+
+
+def _hint_shared_massive(plan: MapPlan) -> None:
+    """A massless varied body that is not the last one: say that listed last it would let the map step
+    the massive bodies once for all pixels (orbitsim/ensemble/restricted.py)."""
+    from orbitsim.stability.plan import pixel_state
+
+    masses = pixel_state(plan, 0)[0]
+    body = plan.axes[0].index
+    if len(masses) >= 3 and masses[body] == 0.0 and body != len(masses) - 1 and \
+            all(axis.index == body for axis in plan.axes):
+        warn(f"{plan.axes[0].body} is massless but not the last body: listed last, it would let the map step the "
+             "massive bodies once for all pixels (about 3x faster; the body order sets the Jacobi coordinates, so "
+             "the map would differ slightly)")
 
 
 def _number_or_text(text: str) -> float | str:
