@@ -136,7 +136,8 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
                  "scenario_name": base.name, "scenario_source": str(base.source),
                  "command": " ".join(["orbitsim", *sys.argv[1:]]), "time_unit": _time_unit(base.units, base.G)}
         attrs.update({f"provenance_{k}": v for k, v in provenance().items()})
-        _hint_shared_massive(plan)
+        if not quiet:
+            _hint_shared_massive(plan)
         progress = None if quiet else (lambda line: click.echo(f"\r{line}   ", err=True, nl=False))
         data = run_map(plan, directory, max_energy_error=max_energy_error, indicator=indicator, attrs=attrs,
                        scheduler=scheduler, progress=progress)
