@@ -96,12 +96,28 @@ class VariationalState:
 
 
 def forces_with_derivatives() -> tuple[str, ...]:
-    """The scenario force names whose derivatives :mod:`orbitsim.forces.tangent` builds (its
-    ``TANGENT_FORCES``; none where that module names none)."""
-    from orbitsim.forces import tangent  # noqa: PLC0415 - lazy: loads numba
+    """The scenario force names whose derivatives enter the variational equations
+    (:mod:`orbitsim.forces.tangent`; ``orbitsim.forces.compat.TANGENT_BUILT`` where that table exists,
+    else none: without it a forced context does not compile into a variational step)."""
+    from orbitsim.forces import compat  # noqa: PLC0415 - lazy: only a chaos run with forces
 
-    # getattr: the table is that module's to declare; a build without one has no force derivative at all.
-    return tuple(getattr(tangent, "TANGENT_FORCES", ()))
+    return tuple(getattr(compat, "TANGENT_BUILT", ()))
+
+
+def _force_refusal(name: str, integrator: str) -> str | None:
+    """Why a variational run of ``integrator`` cannot take force ``name`` (one line), or None:
+    ``orbitsim.forces.compat.check_chaos_forces`` where it exists (it knows which derivatives are built
+    and which schemes' variational kernels take forces), else every force is refused."""
+    from orbitsim.forces import compat  # noqa: PLC0415 - lazy: only a chaos run with forces
+
+    # getattr: the forces' own table decides; a build without it has no force derivative at all.
+    check = getattr(compat, "check_chaos_forces", None)
+    if check is None:
+        return (f"the variational equations would leave out {name}: its derivative is not built "
+                "(orbitsim/forces/tangent.py), and orbitsim never silently integrates the variations of "
+                "Newtonian gravity alone; remove the force or output.chaos")
+    why = check((name,), integrator)
+    return None if why is None else f"the variational equations would leave out {name}: {why}"
 
 
 def variational_refusal(integrator: str, settings: dict[str, Any], force_names: Any,
@@ -116,12 +132,10 @@ def variational_refusal(integrator: str, settings: dict[str, Any], force_names: 
     why = chaos_refusal(integrator, settings)
     if why is not None:
         return "integrator", f"chaos indicators need the variational equations: {why}"
-    built = forces_with_derivatives()
     for k, name in enumerate(force_names):
-        if name not in built:
-            return f"forces[{k}]", (f"the variational equations would leave out {name}: its derivative is not "
-                                    "built (orbitsim/forces/tangent.py), and orbitsim never silently integrates "
-                                    "the variations of Newtonian gravity alone; remove the force or output.chaos")
+        why = _force_refusal(name, integrator)
+        if why is not None:
+            return f"forces[{k}]", why
     if has_events:
         return "events", ("output.chaos does not combine with events: a merge or a removal would change the bodies "
                           "the tangent vector belongs to mid-run; remove the events section or output.chaos")

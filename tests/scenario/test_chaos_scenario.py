@@ -149,8 +149,8 @@ def test_a_force_without_its_derivative_is_refused_naming_the_forces_key(tmp_pat
     result = CliRunner().invoke(cli, ["run", str(path), "-o", str(tmp_path / "out.h5")])
     assert result.exit_code == 2 and result.stderr.count("\n") == 1, result.output
     assert result.stderr.startswith(f"orbitsim: error: {path}: forces[0]: the variational equations would leave "
-                                    f"out {name}: its derivative is not built"), result.stderr
-    assert "never silently" in result.stderr
+                                    f"out {name}: "), result.stderr
+    assert "derivative" in result.stderr and "not built" in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.yaml"]
 
 
