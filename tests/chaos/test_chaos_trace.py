@@ -190,3 +190,16 @@ def test_summary_line_and_info_report_megno_and_the_lyapunov_time(tmp_path: Path
     assert info.exit_code == 0
     line = next(line for line in info.stdout.splitlines() if line.startswith("chaos:"))
     assert expected in line and f"at t = {last:.10g}" in line and "seed 0" in line
+
+
+def test_run_from_with_another_scheme_continues_the_tangent_vector(tmp_path: Path) -> None:
+    run_scenario(scenario_from_dict(PAIR), tmp_path / "out.h5", handle_signals=False)
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        before = {name: f["checkpoint/chaos"][name][()] for name in ("dpos", "megno_sums")}
+    plan = prepare_extension(tmp_path / "out.h5", steps=2000, integrator="leapfrog4")
+    assert plan.start.rebuild and np.array_equal(plan.start.checkpoint.state.chaos["dpos"], before["dpos"])
+    assert run_scenario(plan.scenario, plan.output, start=plan.start, handle_signals=False).status == "complete"
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        # Not restarted: MEGNO's sums count every step from t = 0 (initial_t, the 7th sum, stays 0).
+        assert f["checkpoint/chaos/megno_updates"][0] == PAIR["steps"] + 2000
+        assert f["checkpoint/chaos/megno_sums"][6] == 0.0 and f["megno"].shape == (PAIR["steps"] // 500 + 5,)
