@@ -203,3 +203,18 @@ def test_run_from_with_another_scheme_continues_the_tangent_vector(tmp_path: Pat
         # Not restarted: MEGNO's sums count every step from t = 0 (initial_t, the 7th sum, stays 0).
         assert f["checkpoint/chaos/megno_updates"][0] == PAIR["steps"] + 2000
         assert f["checkpoint/chaos/megno_sums"][6] == 0.0 and f["megno"].shape == (PAIR["steps"] // 500 + 5,)
+
+
+def test_a_force_whose_derivative_is_built_enters_the_scenario_run(tmp_path: Path) -> None:
+    from orbitsim.chaos.state import forces_with_derivatives
+
+    if "gr_potential" not in forces_with_derivatives():
+        pytest.skip("gr_potential's derivative is not built here: the scenario is refused (test_chaos_scenario.py)")
+    doc = {**PAIR, "steps": 4000, "bodies": [*PAIR["bodies"][:2], {**PAIR["bodies"][2], "a": 1.3}]}
+    forced = {**doc, "forces": [{"force": "gr_potential", "source": "star", "c": 100.0}]}
+    megno = []
+    for name, document in (("plain", doc), ("forced", forced)):
+        assert run_scenario(scenario_from_dict(document), tmp_path / f"{name}.h5", handle_signals=False).chaos
+        with h5py.File(tmp_path / f"{name}.h5", "r") as f:
+            megno.append(f["megno"][()])
+    assert np.all(np.isfinite(megno[1])) and not np.array_equal(megno[0], megno[1])  # the force is in the tangent
