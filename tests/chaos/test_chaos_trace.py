@@ -217,4 +217,4 @@ def test_a_force_whose_derivative_is_built_enters_the_scenario_run(tmp_path: Pat
         assert run_scenario(scenario_from_dict(document), tmp_path / f"{name}.h5", handle_signals=False).chaos
         with h5py.File(tmp_path / f"{name}.h5", "r") as f:
             megno.append(f["megno"][()])
-    assert np.all(np.isfinite(megno[1])) and not np.array_equal(megno[0], megno[1])  # the force is in the tangent
+    assert np.all(np.isfinite(megno[1])) and not np.array_equal(megno[0], megno[1])  # a run of the forced system
