@@ -68,6 +68,7 @@ class RunSummary:
     steps_before: int = 0
     wall_before_s: float = 0.0
     scheme_counters_before: dict[str, Any] | None = None
+    chaos: tuple[float, float] | None = None  # output.chaos: (MEGNO, mLCE) at the last sample
 
     @property
     def continued(self) -> bool:
@@ -121,6 +122,7 @@ class RunLoop:
         self.scale = math.nan  # what |dE| is divided by (orbitsim.results.energy_scale), from the first sample
         self.max_err = 0.0
         self.energy_failure: tuple[int, float, float] | None = None  # step, time, energy of the first bad sample
+        self.chaos_last: tuple[float, float] | None = None  # output.chaos: (MEGNO, mLCE) at the last sample taken
         self.safe = False  # True where the state agrees with the samples written: a checkpoint may be taken
         self.history = start.checkpoint.history if start is not None else ""  # `run --from` scheme/dt changes
         self.checkpoints = Checkpointer(scenario, sink, start, force)
@@ -196,7 +198,7 @@ class RunLoop:
             stopper.in_chunks = False
 
     def _make_simulation(self, threads: int | None) -> Simulation:
-        from orbitsim.checkpoint.state import restore_state  # noqa: PLC0415 -- lazy: loads h5py
+        from orbitsim.checkpoint.state import restore_state, restore_variational  # noqa: PLC0415 -- lazy: loads h5py
         from orbitsim.scenario_simulation import scenario_simulation  # noqa: PLC0415 -- lazy: loads yaml
 
         sc = self.scenario
@@ -217,6 +219,7 @@ class RunLoop:
                                                                         ckpt.t0))
         if self.start_point.rebuild:
             sim.steps_done = ckpt.steps_done  # a new scheme: its work is made fresh
+            restore_variational(sim, state)  # the tangent vector is the bodies', whatever the scheme
         else:
             restore_state(sim, state)
         return sim
@@ -236,6 +239,8 @@ class RunLoop:
             self.samples += len(chunk)
             self.last_time = float(chunk.time[-1])
             self.last_step = int(chunk.step[-1])
+            if chunk.extra is not None and "megno" in chunk.extra:
+                self.chaos_last = (float(chunk.extra["megno"][-1]), float(chunk.extra["mlce"][-1]))
             if self.on_chunk:
                 self.on_chunk(self.sim, chunk)
         if self.step_check is not None:
@@ -334,7 +339,15 @@ class RunLoop:
             events=outcome.summary(self.scenario.names) if outcome is not None else "",
             scheme_counters=scheme_counters, steps_before=self.start_point.checkpoint.steps_done if self.start_point
             else 0, wall_before_s=self.checkpoints.prior_wall, scheme_counters_before=self.counters_before,
-            unresolved_warning=unresolved)
+            unresolved_warning=unresolved, chaos=self._chaos_at_end())
+
+    def _chaos_at_end(self) -> tuple[float, float] | None:
+        """(MEGNO, mLCE) at the last sample: this process's, or for a continuation that took none, the
+        sums it continued from when they are the last sample's (the state is at that step)."""
+        variational = getattr(self.sim, "variational", None)
+        if self.chaos_last is not None or variational is None or not self.samples:
+            return self.chaos_last
+        return variational.now(self.sim.time) if self.sim.steps_done == self.last_step else None
 
     def _scheme_counters(self) -> dict[str, Any] | None:
         """An adaptive scheme's own counts so far (None for a fixed-step scheme, or before the simulation)."""

@@ -61,6 +61,10 @@ def trace_attrs(scenario: Scenario, threads: int) -> dict[str, Any]:
     if getattr(scenario, "forces", ()):
         # The resolved forces (names, parameters in the scenario's units): what the run applied.
         attrs["forces"] = json.dumps([dict(entry) for entry in scenario.forces], sort_keys=True, default=float)
+    if getattr(scenario, "chaos", None) is not None:  # what the megno and mlce datasets were computed from
+        from orbitsim.scenario.chaos import chaos_attrs  # noqa: PLC0415 -- lazy: a chaos run only
+
+        attrs.update(chaos_attrs(scenario.chaos, scenario.names))
     if scenario.t_end is not None:
         attrs["t_end_requested"] = scenario.t_end
     if scenario.interval is not None:

@@ -1,11 +1,12 @@
 """A :class:`~orbitsim.simulation.Simulation` set up from a :class:`~orbitsim.scenario.Scenario`.
 
 One place turns a scenario into the engine that steps it (its scheme and settings, ``grid_dt``,
-G, softening, the clock from ``t_start``, events, radii and forces), so that a run, a replay to a
-sample (:mod:`orbitsim.scenario.integrator_state`) and an animation of the scenario step the same
-bits. A new run from the scenario's own bodies also takes the scheme's own coordinates when the
-scenario carries them (``integrator_state``), and resolves bodies that overlap at its start as
-``events.collisions`` says; a continuation passes the state it goes on from.
+G, softening, the clock from ``t_start``, events, radii, forces and ``output.chaos``'s initial
+variation), so that a run, a replay to a sample (:mod:`orbitsim.scenario.integrator_state`) and an
+animation of the scenario step the same bits. A new run from the scenario's own bodies also takes
+the scheme's own coordinates when the scenario carries them (``integrator_state``), and resolves
+bodies that overlap at its start as ``events.collisions`` says; a continuation passes the state it
+goes on from.
 
 Those coordinates (:mod:`orbitsim.scenario.integrator_state`) meet the engine here: :func:`install`
 puts them into a new run's work, and :func:`state_from_checkpoint` and :func:`state_by_replay`
@@ -48,12 +49,23 @@ def scenario_simulation(scenario: Scenario, threads: int | None = None, *, eleme
     sc = scenario
     masses, positions, velocities, radii, t0 = start or (sc.masses, sc.positions, sc.velocities, sc.radii, sc.t_start)
     sim = Simulation(masses, positions, velocities, sc.integrator, sc.grid_dt, sc.G, sc.softening, t0, threads,
-                     sc.run_settings, events=sc.events, radii=radii, elements=elements, forces=scenario_forces(sc))
+                     sc.run_settings, events=sc.events, radii=radii, elements=elements, forces=scenario_forces(sc),
+                     chaos=_chaos_rows(sc))
     if start is None and sc.integrator_state is not None:
         install(sim, sc)
     if start is None and sim.watcher is not None:
         sim.watcher.contacts_at_start(sim)  # bodies that overlap at t_start: a collision at step 0
     return sim
+
+
+def _chaos_rows(scenario: Scenario) -> np.ndarray | None:
+    """The initial tangent vector of ``output.chaos`` as (N, 6) rows, or None without it (a continuation
+    restores its own from the checkpoint)."""
+    config = getattr(scenario, "chaos", None)
+    if config is None:
+        return None
+    dpos, dvel = config.initial_tangent(scenario.n_bodies)
+    return np.concatenate([dpos.T, dvel.T], axis=1)
 
 
 def install(sim: Simulation, s: Scenario) -> None:

@@ -127,6 +127,12 @@ class Simulation:
         them through the force hooks (:mod:`orbitsim.forces.hooks`), and every energy (samples,
         :meth:`total_energy`) includes the forces' energy. Without it nothing about forces is
         imported or compiled.
+    chaos : (N, 6) array, optional
+        Integrate the first-order variational equations beside the bodies, from this initial
+        tangent vector (rows dx dy dz dvx dvy dvz per body), with the scheme's ``run_chaos``
+        (:mod:`orbitsim.chaos`): every chunk then carries ``extra["megno"]`` and ``extra["mlce"]``,
+        and :attr:`variational` holds the tangent state and MEGNO's sums. Refused (SimulationError,
+        one line) for a scheme, force or events the variational equations do not cover.
     """
 
     masses: Any
@@ -143,6 +149,7 @@ class Simulation:
     radii: Any = None
     elements: str | int | None = None
     forces: Any = None
+    chaos: Any = None
 
     def __post_init__(self) -> None:
         from orbitsim.cores import choose_threads  # noqa: PLC0415 -- lazy: off `orbitsim validate`
@@ -166,6 +173,9 @@ class Simulation:
         self.steps_done = 0
         self.diverged = False
         self.watcher = None
+        self.variational: Any = None  # orbitsim.chaos.state.VariationalState of a run with chaos
+        if self.chaos is not None:
+            self._start_variational()
         if self.events is not None:
             from orbitsim.events.driver import Watcher  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
 
@@ -180,6 +190,20 @@ class Simulation:
             why = "the forces were made for a different number of bodies"
         if why is not None:
             raise SimulationError(why)
+
+    def _start_variational(self) -> None:
+        """The tangent state from ``chaos``, refused in one line where the variational equations cannot run."""
+        from orbitsim.chaos.state import VariationalState, variational_refusal  # noqa: PLC0415 -- lazy: a chaos run only
+
+        names = self.forces.names if self.forces is not None else ()
+        refusal = variational_refusal(self.spec.name, dict(self.settings), names, self.events is not None)
+        if refusal is not None:
+            raise SimulationError(refusal[1])
+        rows = np.asarray(self.chaos, dtype=np.float64)
+        if rows.shape != (self.n, 6) or not np.all(np.isfinite(rows)) or not np.any(rows != 0.0):
+            raise SimulationError(f"chaos must be {self.n} finite rows of 6 numbers (dx dy dz dvx dvy dvz per body), "
+                                  f"not all zero; got shape {rows.shape}")
+        self.variational = VariationalState(rows[:, :3].T, rows[:, 3:].T, self.t0)
 
     @property
     def halted(self) -> Any:
@@ -270,7 +294,12 @@ class Simulation:
             call_targets, record = targets.plan_call(self.steps_done, budget)
             out = buffers.views(self.rows)
             start = time.perf_counter()
-            if watcher is None:
+            if watcher is None and self.variational is not None:
+                written, n_done, finite, sums = self._call_kernels(functools.partial(
+                    self.variational.run, self.scheme, state, self.step_force, self.dt, self.work, self.t0,
+                    self.steps_done, call_targets, record, out))
+                self.variational.megno = sums  # only once the call stands (a stop that undid it raised above)
+            elif watcher is None:
                 written, n_done, finite = self._call_kernels(functools.partial(
                     self.scheme.run, state, self.step_force, self.dt, self.work, self.t0, self.steps_done, call_targets,
                     record, out))
@@ -282,6 +311,8 @@ class Simulation:
             # Every recorded target is one sample, so the samples written are the targets consumed.
             targets.consume(int(written))
             chunk = buffers.chunk(int(written)) if written or (yield_empty and finite) else None
+            if chunk is not None and self.variational is not None:
+                chunk = replace(chunk, extra={**(chunk.extra or {}), **self.variational.series(int(written))})
             if chunk is not None and self.elements is not None:
                 chunk = self._with_elements(watcher.expand(chunk) if watcher is not None else chunk, keep_positions)
             elif chunk is not None and watcher is not None:
@@ -341,6 +372,8 @@ class Simulation:
                     collect(item)
 
         collect((self.pos, self.vel, self.acc, self.m, self.work))
+        if self.variational is not None:
+            collect(self.variational.changing_arrays())
         if self.watcher is not None:
             collect(self.watcher.watch)
         return arrays

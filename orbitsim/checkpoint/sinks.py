@@ -173,7 +173,7 @@ def add_events(writer: TraceWriter, events: RunEvents) -> None:
 def scenario_series(scenario: Scenario) -> tuple[dict[str, tuple[int, ...]], dict[str, dict[str, Any]]]:
     """The per-sample series a scenario's trace holds beyond the standard ones, with their shapes,
     and the attributes of their groups: ``energy_offset`` with events, ``elements/*`` with
-    ``output.elements`` (group attribute ``primary``)."""
+    ``output.elements`` (group attribute ``primary``), ``megno`` and ``mlce`` with ``output.chaos``."""
     series: dict[str, tuple[int, ...]] = {}
     groups: dict[str, dict[str, Any]] = {}
     if scenario.events is not None:
@@ -181,6 +181,8 @@ def scenario_series(scenario: Scenario) -> tuple[dict[str, tuple[int, ...]], dic
     if scenario.record_elements:
         series.update({f"elements/{name}": (scenario.n_bodies,) for name in ELEMENTS})
         groups["elements"] = {"primary": scenario.elements_primary}
+    if getattr(scenario, "chaos", None) is not None:  # output.chaos: MEGNO and the mLCE at every sample
+        series.update({"megno": (), "mlce": ()})
     return series, groups
 
 

@@ -15,7 +15,7 @@ from orbitsim.io.checkpoint import CheckpointError, SimState, layout_json
 if TYPE_CHECKING:
     from orbitsim.simulation import Simulation
 
-__all__ = ["capture_state", "restore_state", "restore_work"]
+__all__ = ["capture_state", "restore_state", "restore_variational", "restore_work"]
 
 
 def capture_state(sim: Simulation) -> SimState:
@@ -23,8 +23,9 @@ def capture_state(sim: Simulation) -> SimState:
     arrays: list[np.ndarray] = []
     layout = _flatten(sim.work, arrays)
     events = sim.watcher.arrays() if sim.watcher is not None else {}
+    chaos = sim.variational.arrays() if sim.variational is not None else {}
     return SimState(steps_done=int(sim.steps_done), pos=sim.pos.copy(), vel=sim.vel.copy(), acc=sim.acc.copy(),
-                    work=tuple(arrays), work_layout=layout_json(layout), events=events)
+                    work=tuple(arrays), work_layout=layout_json(layout), events=events, chaos=chaos)
 
 
 def _flatten(obj: Any, out: list[np.ndarray]) -> Any:
@@ -69,6 +70,25 @@ def restore_state(sim: Simulation, state: SimState) -> None:
         raise CheckpointError("checkpoint and run differ in whether events are watched")
     if sim.watcher is not None:
         sim.watcher.restore(state.events)
+    restore_variational(sim, state)
+
+
+def restore_variational(sim: Simulation, state: SimState) -> None:
+    """Put ``state``'s variational state (``output.chaos``: tangent vector, MEGNO's sums) back into ``sim``.
+
+    Raises
+    ------
+    CheckpointError
+        If one of them carries the variational equations and the other does not, or the state does not fit.
+    """
+    if (sim.variational is not None) != bool(state.chaos):
+        raise CheckpointError("checkpoint and run differ in whether they carry the variational equations "
+                              "(output.chaos)")
+    if sim.variational is not None:
+        try:
+            sim.variational.restore(state.chaos)
+        except ValueError as err:
+            raise CheckpointError(str(err)) from None
 
 
 def restore_work(work: Any, state: SimState) -> bool:

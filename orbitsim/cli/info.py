@@ -49,7 +49,8 @@ def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
 
     For a run with events: the count of each kind, the first 10 events (--events lists them
     all), and the bodies that left the run (merged or removed); for a run that recorded
-    orbital elements, their primary and shape.
+    orbital elements, their primary and shape; for a run with output.chaos, MEGNO, the mLCE
+    and the Lyapunov time at the last sample.
 
     Also its checkpoint: the state the run stopped in and whether `orbitsim resume` or
     `orbitsim run --from` can continue it. Given a checkpoint (OUT.h5.ckpt), or the output of a
@@ -105,6 +106,8 @@ def command(trace: str, show_scenario: bool, events_kind: str | None) -> None:
     click.echo(f"bodies:   {summary['n_bodies']}")
     for line in sections:  # none for a trace without events or elements
         click.echo(line)
+    for line in _chaos_lines(trace, attrs):  # none for a trace without output.chaos
+        click.echo(line)
     for line in history_lines(attrs.get("integrator_history", "")):
         click.echo(line)
     click.echo("datasets:")
@@ -154,6 +157,24 @@ def _event_lines(path: str, n_bodies: int) -> list[str]:
         lines += [f"  {b.name:<{width}}  {f'merged into {b.into}' if b.into else 'removed'} at t = "
                   f"{format_time(b.time)} (step {b.step})" for b in left]
     return lines
+
+
+def _chaos_lines(path: str, attrs: dict[str, Any]) -> list[str]:
+    """The ``chaos:`` line of a run with ``output.chaos``: MEGNO, the mLCE and the Lyapunov time at
+    the last sample (in the scenario's time unit), and what the tangent vector started from."""
+    import h5py
+
+    from orbitsim.scenario.chaos import indicators_text
+
+    with h5py.File(path, "r") as f:
+        if "megno" not in f or "mlce" not in f:
+            return []
+        if f["megno"].shape[0] == 0:
+            return ["chaos:    megno, mlce: no samples"]
+        megno, mlce, when = float(f["megno"][-1]), float(f["mlce"][-1]), float(f["time"][-1])
+    start = f"seed {attrs['chaos_seed']}" if "chaos_seed" in attrs else "an explicit variation"
+    return [f"chaos:    {indicators_text(megno, mlce, str(attrs.get('units', '')))} at t = {when:.10g} "
+            f"(datasets megno, mlce; tangent vector from {start})"]
 
 
 def _list_events(path: str, kind: str | None) -> None:

@@ -241,8 +241,13 @@ def _report(summary: Any, scenario: Any, quiet: bool) -> None:
             ias15 = f", {own['full_ias15_steps']:,} IAS15 steps" if own.get("full_ias15_steps") else ""
             done += (f" ({scenario.integrator}: {own['redone']:,} steps redone, "
                      f"{own['encounter_bs_substeps'] + own['full_bs_substeps']:,} Bulirsch-Stoer sub-steps{ias15})")
-        click.echo(f"{summary.name}: {summary.status}, {done}, max |dE/E| = {summary.max_abs_energy_error:.3g}, "
-                   f"{summary.samples} samples to {end} -> {summary.output}")
+        chaos = ""
+        if getattr(summary, "chaos", None) is not None:  # output.chaos: the indicators at the last sample
+            from orbitsim.scenario.chaos import indicators_text
+
+            chaos = f", {indicators_text(*summary.chaos, scenario.units)}"
+        click.echo(f"{summary.name}: {summary.status}, {done}, max |dE/E| = {summary.max_abs_energy_error:.3g}"
+                   f"{chaos}, {summary.samples} samples to {end} -> {summary.output}")
     if not quiet and summary.events:
         click.echo(f"{summary.name}: events: {summary.events}")
     if summary.unresolved_warning and summary.status == "complete":  # a failure stays one line; the trace keeps it

@@ -30,8 +30,9 @@ Datasets ``pos``, ``vel``, ``acc`` (3, N): the simulation's arrays as it holds t
 state for first-same-as-last schemes, so it is saved, not recomputed); ``work/0000``, ... every
 array of the integrator's ``work`` (scratch included, so any scheme that keeps state between
 steps, e.g. ``wisdom_holman``'s mapping coordinates, continues exactly), flattened in order, with
-the nesting in the ``work_layout`` attribute. Attributes: see :data:`_COUNTERS` and
-:class:`Checkpoint`.
+the nesting in the ``work_layout`` attribute; ``events/*`` for a run with events and ``chaos/*``
+(the tangent vector and MEGNO's sums) for a run with ``output.chaos``. Attributes: see
+:data:`_COUNTERS` and :class:`Checkpoint`.
 
 The journal's code is in :mod:`orbitsim.io.journal`; its names are re-exported here.
 """
@@ -111,6 +112,9 @@ class SimState:
     work: tuple[np.ndarray, ...]
     work_layout: str
     events: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    #: A run with ``output.chaos``: its variational state by name (the tangent vector and MEGNO's sums,
+    #: :meth:`orbitsim.chaos.state.VariationalState.arrays`); empty otherwise.
+    chaos: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def digest(self) -> str:
         """SHA-256 over the step count, the layout and every array's dtype, shape and bytes."""
@@ -121,6 +125,10 @@ class SimState:
             h.update(np.ascontiguousarray(arr).tobytes())
         for name, arr in named:  # absent for a run without events: its digest is unchanged
             h.update(f"{name}{arr.dtype.str}{arr.shape}".encode())
+            h.update(np.ascontiguousarray(arr).tobytes())
+        for name in sorted(self.chaos):  # absent for a run without output.chaos: its digest is unchanged
+            arr = self.chaos[name]
+            h.update(f"chaos/{name}{arr.dtype.str}{arr.shape}".encode())
             h.update(np.ascontiguousarray(arr).tobytes())
         return h.hexdigest()
 
@@ -177,6 +185,7 @@ def state_arrays(state: SimState) -> dict[str, np.ndarray]:
     arrays = {"pos": state.pos, "vel": state.vel, "acc": state.acc}
     arrays.update({f"work/{i:04d}": arr for i, arr in enumerate(state.work)})
     arrays.update({f"events/{name}": arr for name, arr in state.events.items()})
+    arrays.update({f"chaos/{name}": arr for name, arr in state.chaos.items()})
     return arrays
 
 
@@ -224,8 +233,10 @@ def read_checkpoint_group(group: h5py.Group, where: str, scenario: str = "",
         if "events" in group:
             group["events"].visititems(
                 lambda name, obj: events.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None)
+        chaos = {name: group["chaos"][name][()] for name in group["chaos"]} if "chaos" in group else {}
         state = SimState(steps_done=int(attrs["steps_done"]), pos=group["pos"][()], vel=group["vel"][()],
-                         acc=group["acc"][()], work=work, work_layout=str(attrs["work_layout"]), events=events)
+                         acc=group["acc"][()], work=work, work_layout=str(attrs["work_layout"]), events=events,
+                         chaos=chaos)
         counters = {name: int(attrs[name]) for name in _COUNTERS if name != "steps_done"}
         ckpt = Checkpoint(
             state=state, integrator=str(attrs["integrator"]), scenario_sha256=str(attrs["scenario_sha256"]),

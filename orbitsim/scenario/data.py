@@ -81,6 +81,9 @@ class ScenarioData:
         ``output.primary``: ``heaviest``, ``jacobi`` or a body name.
     forces : tuple of dict
         The ``forces:`` list, resolved (:mod:`orbitsim.scenario.forces`); empty for none.
+    chaos : ChaosConfig or None
+        ``output.chaos``: record MEGNO and the mLCE at every sample, from this initial variation
+        (:mod:`orbitsim.scenario.chaos`); None for a run without the variational equations.
     """
 
     name: str
@@ -111,6 +114,7 @@ class ScenarioData:
     forces: tuple[dict[str, Any], ...] = ()
     t_start: float = 0.0  # time of step 0: sample n is at t_start + n * dt (orbitsim.scenario.timing)
     integrator_state: dict[str, Any] | None = None  # a scheme's own coordinates (orbitsim.scenario.integrator_state)
+    chaos: Any = None  # output.chaos: a ChaosConfig (orbitsim.scenario.chaos), or None
 
     # -- derived quantities ------------------------------------------------------------------
 

@@ -31,7 +31,7 @@ __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "rebo
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "t_start", "steps", "t_end", "output", "softening",
             "frame", "bodies", "ephemeris", "generator", "events", "forces", "integrator_state",
             "angles")  # angles: read with the bodies (orbitsim.scenario.bodies)
-OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary")
+OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary", "chaos")
 CHECKPOINT_KEYS = ("every", "seconds")
 #: Characters a REBOUND file's stem may not bring into a scenario name (which becomes a file name).
 _UNSAFE_NAME_CHARS = re.compile(r"[^A-Za-z0-9_.+-]")
@@ -262,7 +262,7 @@ def _build(doc: Any, source: str, default_name: str, given: BodySet | None = Non
                         checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, radii=radii,
                         events=events, record_elements=elements, elements_primary=primary,
                         forces=top.raw("forces", ()), t_start=t_start,
-                        integrator_state=top.raw("integrator_state", None))
+                        integrator_state=top.raw("integrator_state", None), chaos=output.raw("chaos", None))
     scenario.remember_origins(bodies.origins)
     renamed = rebound_note(integrator, settings)  # REBOUND's whfast, leapfrog with order: what they became
     scenario.remember_input([renamed, *bodies.notes] if renamed else bodies.notes)  # for `orbitsim validate`

@@ -88,6 +88,7 @@ class Scenario(ScenarioData):
         check_coincident(self.positions, self.names, None, self.softening)
         self._validate_events()
         self._validate_forces()
+        self._validate_chaos()
         check_direction(self.integrator, self.dt, self.events, self.forces)  # dt < 0: backwards, where possible
         if self.integrator_state is not None:
             from orbitsim.scenario.integrator_state import check_integrator_state  # noqa: PLC0415 -- lazy: off `orbitsim validate`
@@ -109,6 +110,16 @@ class Scenario(ScenarioData):
                                 self.events is not None)
             if refusal is not None:
                 raise ScenarioError(refusal, key=f"forces[{k}]")
+
+    def _validate_chaos(self) -> None:
+        """``output.chaos`` resolved, and refused in one line where the variational equations cannot run
+        (:mod:`orbitsim.scenario.chaos`); nothing is imported for a scenario without it."""
+        if self.chaos is None:
+            return
+        from orbitsim.scenario.chaos import check_chaos_run, read_chaos  # noqa: PLC0415 -- lazy: off `orbitsim run`
+
+        self._set("chaos", read_chaos(self.chaos, self.names))
+        check_chaos_run(self.integrator, self.integrator_settings or {}, self.forces, self.events is not None)
 
     def _validate_events(self) -> None:
         self._set("radii", check_radii(self.radii, self.n_bodies))

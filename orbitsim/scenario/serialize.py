@@ -4,8 +4,8 @@ Bodies are explicit and Cartesian, the frame is ``as_given`` (any shift is alrea
 ``steps`` replaces ``t_end`` (except for an adaptive integrator, whose grid ends on ``t_end``
 exactly) and the sampling is explicit, so loading the text reproduces the same bits. Keys a
 scenario does not use (``t_start`` when 0, radii, ``events``, ``forces``, ``output.elements``,
-``output.checkpoint``) are left out rather than written as defaults, so the text and SHA-256 of
-every scenario written before they existed stay the same.
+``output.checkpoint``, ``output.chaos``) are left out rather than written as defaults, so the text
+and SHA-256 of every scenario written before they existed stay the same.
 """
 
 from __future__ import annotations
@@ -39,6 +39,10 @@ def scenario_to_dict(s: ScenarioData, bodies: bool = True) -> dict[str, Any]:
     if s.record_elements:
         output["elements"] = True
         output["primary"] = s.elements_primary
+    if s.chaos is not None:
+        from orbitsim.scenario.chaos import chaos_to_dict  # noqa: PLC0415 -- lazy: only a run that asks for it
+
+        output["chaos"] = chaos_to_dict(s.chaos, s.names)
     if s.checkpoints:
         output["checkpoint"] = {k: v for k, v in (("every", s.checkpoint_every), ("seconds", s.checkpoint_seconds))
                                 if v is not None}
