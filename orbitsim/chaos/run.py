@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from orbitsim.chaos.megno import MegnoState, megno_start, random_initial_variation
+
+if TYPE_CHECKING:
+    from orbitsim.forces.table import ForceSet
 
 
 @dataclass
@@ -65,12 +68,15 @@ def chaos_run(
     seed: int | None = 0,
     t0: float = 0.0,
     resume: ChaosResult | None = None,
+    forces: ForceSet | None = None,
 ) -> ChaosResult:
     """Integrate the bodies and their tangent vector for ``steps`` steps of ``dt`` (from ``resume``'s
     state when given), sampling MEGNO and mLCE every ``every`` steps (and at the last step).
+    ``forces`` (a :class:`~orbitsim.forces.table.ForceSet` for the N bodies) act on the bodies and,
+    through their derivatives (:mod:`orbitsim.forces.tangent`), on the tangent vector.
 
-    Raises ValueError, one line, for a scheme or settings without variational equations, a bad
-    variation, or bad numbers.
+    Raises ValueError, one line, for a scheme, settings or a force without variational equations, a
+    bad variation, or bad numbers.
     """
     from orbitsim.integrators.base import make_tangent  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.integrators.registry import chaos_refusal, get_integrator  # noqa: PLC0415 - lazy: loads numba
@@ -78,7 +84,7 @@ def chaos_run(
     from orbitsim.physics.force_context import accelerations_at, make_force  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.results import SampleBuffers  # noqa: PLC0415 - lazy: loads numba
 
-    why = chaos_refusal(integrator, settings)
+    why = chaos_refusal(integrator, settings, () if forces is None else forces.names)
     if why is not None:
         raise ValueError(why)
     if not (math.isfinite(dt) and dt != 0.0) or int(steps) != steps or steps < 0 or every < 1:
@@ -99,6 +105,12 @@ def chaos_run(
     if pos.shape != (3, n) or vel.shape != (3, n):
         raise ValueError(f"positions and velocities must have shape ({n}, 3)")
     force = make_force(G, softening, n)
+    if forces is not None and forces.ids.shape[0] > 0:
+        from orbitsim.forces.hooks import forced_context  # noqa: PLC0415 - lazy: loads numba
+
+        if forces.per_body.shape[2] != n:
+            raise ValueError(f"forces are for {forces.per_body.shape[2]} bodies, the run has {n}")
+        force = forced_context(force, forces, n)
     work = record.make_work(m, G, settings)
     acc = np.zeros((3, n))
     accelerations_at(force, pos, m, acc)

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.chaos.megno import MEGNO_FIELDS, MegnoState, megno_start
+from orbitsim.forces.compat import TANGENT_BUILT, check_chaos_forces
 from orbitsim.integrators.base import Tangent, make_tangent
 
 __all__ = ["CHAOS_SERIES", "VariationalState", "forces_with_derivatives", "variational_refusal"]
@@ -97,26 +98,15 @@ class VariationalState:
 
 def forces_with_derivatives() -> tuple[str, ...]:
     """The scenario force names whose derivatives enter the variational equations
-    (:mod:`orbitsim.forces.tangent`; ``orbitsim.forces.compat.TANGENT_BUILT`` where that table exists,
-    else none: without it a forced context does not compile into a variational step)."""
-    from orbitsim.forces import compat  # noqa: PLC0415 - lazy: only a chaos run with forces
-
-    return tuple(getattr(compat, "TANGENT_BUILT", ()))
+    (:mod:`orbitsim.forces.tangent`, :data:`orbitsim.forces.compat.TANGENT_BUILT`)."""
+    return tuple(TANGENT_BUILT)
 
 
 def _force_refusal(name: str, integrator: str) -> str | None:
     """Why a variational run of ``integrator`` cannot take force ``name`` (one line), or None:
-    ``orbitsim.forces.compat.check_chaos_forces`` where it exists (it knows which derivatives are built
-    and which schemes' variational kernels take forces), else every force is refused."""
-    from orbitsim.forces import compat  # noqa: PLC0415 - lazy: only a chaos run with forces
-
-    # getattr: the forces' own table decides; a build without it has no force derivative at all.
-    check = getattr(compat, "check_chaos_forces", None)
-    if check is None:
-        return (f"the variational equations would leave out {name}: its derivative is not built "
-                "(orbitsim/forces/tangent.py), and orbitsim never silently integrates the variations of "
-                "Newtonian gravity alone; remove the force or output.chaos")
-    why = check((name,), integrator)
+    :func:`orbitsim.forces.compat.check_chaos_forces` knows which derivatives are built and which
+    schemes' variational kernels take forces."""
+    why = check_chaos_forces((name,), integrator)
     return None if why is None else f"the variational equations would leave out {name}: {why}"
 
 

@@ -63,6 +63,44 @@ def gr_potential_accelerations(pos, m, G, src, c, acc):
         acc[2, src] += ratio * prefac * dz
 
 
+@jit_inline
+def gr_potential_tangent(pos, m, G, src, c, dpos, dacc):
+    """dacc (3, N) += the derivative of :func:`gr_potential_accelerations` at ``pos`` along ``dpos``.
+
+    With P = 6 (G M)^2 / c^2, d = x_i - x_s and dd = dx_i - dx_s, the Jacobian of a = -P d / r^4
+    applied to dd is
+
+        da_i = -P / r^4 [dd - 4 (d . dd) / r^2 d],
+
+    and the source takes -(m_i / M) da_i, as it takes the reaction of a_i.
+    """
+    C2 = c * c
+    gm = G * m[src]
+    prefac1 = 6.0 * gm * gm / C2
+    for i in range(pos.shape[1]):
+        if i == src:
+            continue
+        dx = pos[0, i] - pos[0, src]
+        dy = pos[1, i] - pos[1, src]
+        dz = pos[2, i] - pos[2, src]
+        ddx = dpos[0, i] - dpos[0, src]
+        ddy = dpos[1, i] - dpos[1, src]
+        ddz = dpos[2, i] - dpos[2, src]
+        r2 = dx * dx + dy * dy + dz * dz
+        prefac = prefac1 / (r2 * r2)
+        s = 4.0 * (dx * ddx + dy * ddy + dz * ddz) / r2
+        fx = -prefac * (ddx - s * dx)
+        fy = -prefac * (ddy - s * dy)
+        fz = -prefac * (ddz - s * dz)
+        dacc[0, i] += fx
+        dacc[1, i] += fy
+        dacc[2, i] += fz
+        ratio = m[i] / m[src]
+        dacc[0, src] -= ratio * fx
+        dacc[1, src] -= ratio * fy
+        dacc[2, src] -= ratio * fz
+
+
 @jit
 def gr_potential_energy(pos, m, G, src, c):
     """U = -sum_i 3 (G M)^2 m_i / (c^2 r_i^2) (REBOUNDx ``rebx_gr_potential_potential``)."""

@@ -100,6 +100,77 @@ def harmonics_accelerations(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, acc):
         acc[2, src] -= fac * az
 
 
+@jit_inline
+def harmonics_tangent(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, dpos, dacc):
+    """dacc (3, N) += the derivative of :func:`harmonics_accelerations` at ``pos`` along ``dpos``.
+
+    In the body frame a = (F d_u, F d_v, H d_w) with F = K2 (5 c^2 - 1) + K4 (63 c^4 - 42 c^2 + 3),
+    H = K2 (5 c^2 - 3) + K4 (63 c^4 - 70 c^2 + 15). For a displacement dd of the separation
+    (dd_u, dd_v, dd_w in the body frame), with q = (d . dd) / r^2 (so dr = q r),
+    dK2 = -5 K2 q, dK4 = -7 K4 q and dc = dd_w / r - c q:
+
+        dF = -5 K2 q (5 c^2 - 1) + 10 K2 c dc - 7 K4 q (63 c^4 - 42 c^2 + 3) + K4 (252 c^3 - 84 c) dc,
+        dH = -5 K2 q (5 c^2 - 3) + 10 K2 c dc - 7 K4 q (63 c^4 - 70 c^2 + 15) + K4 (252 c^3 - 140 c) dc,
+        da_u = dF d_u + F dd_u,   da_v = dF d_v + F dd_v,   da_w = dH d_w + H dd_w,
+
+    rotated back to the inertial frame (the rotation is fixed: the spin axis does not move); the
+    oblate body takes -(m_j / M) da_j.
+    """
+    ux, uy, uz, vx, vy, vz, wx, wy, wz = spin_basis(sx, sy, sz)
+    n = pos.shape[1]
+    ms = m[src]
+    for j in range(n):
+        if j == src:
+            continue
+        dx = pos[0, j] - pos[0, src]
+        dy = pos[1, j] - pos[1, src]
+        dz = pos[2, j] - pos[2, src]
+        ddx = dpos[0, j] - dpos[0, src]
+        ddy = dpos[1, j] - dpos[1, src]
+        ddz = dpos[2, j] - dpos[2, src]
+        r2 = dx * dx + dy * dy + dz * dz
+        r = np.sqrt(r2)
+        du = ux * dx + uy * dy + uz * dz
+        dv = vx * dx + vy * dy + vz * dz
+        dw = wx * dx + wy * dy + wz * dz
+        ddu = ux * ddx + uy * ddy + uz * ddz
+        ddv = vx * ddx + vy * ddy + vz * ddz
+        ddw = wx * ddx + wy * ddy + wz * ddz
+        c = dw / r
+        c2 = c * c
+        q = (dx * ddx + dy * ddy + dz * ddz) / r2
+        dc = ddw / r - c * q
+        F = 0.0
+        H = 0.0
+        dF = 0.0
+        dH = 0.0
+        if J2 != 0.0:
+            K2 = 1.5 * G * ms * J2 * R_eq * R_eq / r2 / r2 / r
+            F += K2 * (5.0 * c2 - 1.0)
+            H += K2 * (5.0 * c2 - 3.0)
+            dF += -5.0 * K2 * q * (5.0 * c2 - 1.0) + 10.0 * K2 * c * dc
+            dH += -5.0 * K2 * q * (5.0 * c2 - 3.0) + 10.0 * K2 * c * dc
+        if J4 != 0.0:
+            K4 = 0.625 * G * ms * J4 * R_eq * R_eq * R_eq * R_eq / r2 / r2 / r2 / r
+            F += K4 * (63.0 * c2 * c2 - 42.0 * c2 + 3.0)
+            H += K4 * (63.0 * c2 * c2 - 70.0 * c2 + 15.0)
+            dF += -7.0 * K4 * q * (63.0 * c2 * c2 - 42.0 * c2 + 3.0) + K4 * (252.0 * c2 * c - 84.0 * c) * dc
+            dH += -7.0 * K4 * q * (63.0 * c2 * c2 - 70.0 * c2 + 15.0) + K4 * (252.0 * c2 * c - 140.0 * c) * dc
+        dau = dF * du + F * ddu
+        dav = dF * dv + F * ddv
+        daw = dH * dw + H * ddw
+        ax = ux * dau + vx * dav + wx * daw
+        ay = uy * dau + vy * dav + wy * daw
+        az = uz * dau + vz * dav + wz * daw
+        dacc[0, j] += ax
+        dacc[1, j] += ay
+        dacc[2, j] += az
+        fac = m[j] / ms
+        dacc[0, src] -= fac * ax
+        dacc[1, src] -= fac * ay
+        dacc[2, src] -= fac * az
+
+
 @jit
 def harmonics_potential(pos, m, G, src, J2, J4, R_eq, sx, sy, sz):
     """The potential energy sum_j U_j of the module docstring (REBOUNDx

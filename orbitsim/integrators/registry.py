@@ -18,8 +18,10 @@ from __future__ import annotations
 import difflib
 import functools
 import importlib
+from collections.abc import Iterable
 from typing import Any
 
+from orbitsim.forces.compat import check_chaos_forces
 from orbitsim.integrators.base import Integrator, IntegratorSpec
 from orbitsim.integrators.rebound_names import SAME_SCHEME, closest_scheme
 
@@ -128,11 +130,16 @@ def chaos_schemes() -> tuple[str, ...]:
     return tuple(record.spec.name for record in _records() if record.run_chaos is not None)
 
 
-def chaos_refusal(name: str, settings: dict[str, Any] | None = None) -> str | None:
-    """One line saying why scheme ``name`` with ``settings`` cannot run the variational equations
-    (naming the schemes that can), or None when it can."""
+def chaos_refusal(name: str, settings: dict[str, Any] | None = None, forces: Iterable[str] = ()) -> str | None:
+    """One line saying why scheme ``name`` with ``settings`` and the scenario forces named in
+    ``forces`` cannot run the variational equations (naming the schemes, or forces, that can), or
+    None when it can. A force is refused when its derivative is not built
+    (:func:`orbitsim.forces.compat.check_chaos_forces`)."""
     record = get_integrator(name)
     if record.run_chaos is None:
         return (f"integrator {record.spec.name!r} has no variational equations, so no chaos indicators; "
                 f"schemes that have them: {', '.join(chaos_schemes())}")
-    return record.check_chaos(record.validate_settings(settings))
+    why = record.check_chaos(record.validate_settings(settings))
+    if why is None:
+        why = check_chaos_forces(forces, record.spec.name)
+    return why
