@@ -36,6 +36,10 @@ class ChaosResult:
     sums: MegnoState  #: MEGNO's running sums
     steps_done: int  #: steps taken since the run's t0
     finite: bool  #: False when the run stopped at a non-finite state or a failed step
+    #: The scheme's tangent record (its ``make_tangent``; ``dpos``, ``dvel`` are the arrays above) and
+    #: its ``work`` at the end: what ``resume`` continues from (ias15's polynomials and clock are there).
+    tangent: Any = None
+    work: Any = None
 
 
 def _variation(variation: Any, seed: int | None, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -47,6 +51,13 @@ def _variation(variation: Any, seed: int | None, n: int) -> tuple[np.ndarray, np
     if not np.all(np.isfinite(rows)) or not np.any(rows != 0.0):
         raise ValueError("variation must be finite and not all zero")
     return np.ascontiguousarray(rows[:, :3].T), np.ascontiguousarray(rows[:, 3:].T)
+
+
+def _copied(record: Any) -> Any:
+    """A copy of a scheme's record (an array, or a NamedTuple of arrays and scalars) sharing no array."""
+    if isinstance(record, np.ndarray):
+        return record.copy()
+    return type(record)(*(np.copy(f) if isinstance(f, np.ndarray) else f for f in record))
 
 
 def chaos_run(
@@ -72,7 +83,6 @@ def chaos_run(
     Raises ValueError, one line, for a scheme or settings without variational equations, a bad
     variation, or bad numbers.
     """
-    from orbitsim.integrators.base import make_tangent  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.integrators.registry import chaos_refusal, get_integrator  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.physics.diagnostics import potential_rows_scratch  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.physics.force_context import accelerations_at, make_force  # noqa: PLC0415 - lazy: loads numba
@@ -90,16 +100,17 @@ def chaos_run(
     if resume is None:
         pos = np.array(np.asarray(positions, dtype=np.float64).T, order="C")
         vel = np.array(np.asarray(velocities, dtype=np.float64).T, order="C")
-        tangent = make_tangent(*_variation(variation, seed, n))
+        tangent = record.make_tangent(*_variation(variation, seed, n))
         sums, n_done = megno_start(t0), 0
     else:
         pos, vel = resume.positions.copy(), resume.velocities.copy()
-        tangent = make_tangent(resume.dpos, resume.dvel, resume.halvings)
+        tangent = (record.make_tangent(resume.dpos, resume.dvel, resume.halvings) if resume.tangent is None
+                   else _copied(resume.tangent))
         sums, n_done = resume.sums, resume.steps_done
     if pos.shape != (3, n) or vel.shape != (3, n):
         raise ValueError(f"positions and velocities must have shape ({n}, 3)")
     force = make_force(G, softening, n)
-    work = record.make_work(m, G, settings)
+    work = record.make_work(m, G, settings) if resume is None or resume.work is None else _copied(resume.work)
     acc = np.zeros((3, n))
     accelerations_at(force, pos, m, acc)
     last = n_done + int(steps)
@@ -113,4 +124,5 @@ def chaos_run(
         np.ones(targets.shape[0], dtype=np.bool_), buffers.views(potential_rows_scratch(n)), indicators, sums)
     k = int(written)
     return ChaosResult(buffers.times[:k].copy(), indicators[:k, 0].copy(), indicators[:k, 1].copy(), pos, vel,
-                       tangent.dpos, tangent.dvel, int(tangent.halvings[0]), sums, int(n_end), bool(finite))
+                       tangent.dpos, tangent.dvel, int(tangent.halvings[0]), sums, int(n_end), bool(finite), tangent,
+                       work)
