@@ -7,7 +7,10 @@ scheme's work, the :class:`~orbitsim.integrators.base.Tangent` and MEGNO's sums,
 jitted loop. The initial variation is either given (``variation``: (N, 6) rows dx dy dz dvx dvy
 dvz per body, e.g. REBOUND's variational particle after ``init_megno``) or drawn from ``seed``
 (:func:`orbitsim.chaos.megno.random_initial_variation`). ``resume`` continues a :class:`ChaosResult`
-with the same bits as an uninterrupted run.
+with the same bits as an uninterrupted run, from copies of its state, its tangent record (the
+scheme's ``make_tangent``) and its ``work`` (an adaptive scheme's clock and polynomials), with the
+first call's settings. For ias15, ``dt`` is the output grid, as in its plain run: IAS15 chooses its
+own steps and lands exactly on each grid time.
 """
 
 from __future__ import annotations
