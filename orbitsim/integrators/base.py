@@ -50,9 +50,8 @@ it and a default where a scheme has nothing to say. Callers use the record's fie
     :class:`Tangent`, ``megno`` a :class:`~orbitsim.chaos.megno.MegnoState`; each sample also writes
     ``indicators[r] = (MEGNO, mLCE)``. Returns ``(samples_written, n_done, finite, megno)``.
     Default: None, a scheme without variational equations (:func:`chaos_schemes` lists the others).
-18. ``check_chaos(settings, forces=None) -> str | None``: why these settings (and ``forces``, the run's
-    :class:`~orbitsim.forces.table.ForceSet` or None) have no variational equations (one line), or
-    None. Default: None (every setting has them; forces are the force hooks' to refuse).
+18. ``check_chaos(settings) -> str | None``: why these settings have no variational equations (one
+    line), or None. Default: None (every setting has them).
 19. ``make_tangent(dpos, dvel, halvings=0) -> tangent``: the scheme's tangent record for ``run_chaos``,
     holding copies of the (3, N) tangent vector; whatever its type, it has ``dpos``, ``dvel`` and
     ``halvings`` (int64 (1,)) as :class:`Tangent` has. Default: :func:`make_tangent`. ias15's carries
@@ -166,7 +165,7 @@ def _grid_clock(work: Any, grid_time: float) -> float:
     return grid_time
 
 
-def _chaos_everywhere(settings: Mapping[str, Any], forces: Any = None) -> None:
+def _chaos_everywhere(settings: Mapping[str, Any]) -> None:
     """Every setting of the scheme has variational equations."""
     return None
 
@@ -200,7 +199,7 @@ class Integrator:
     kicks: np.ndarray | None = None
     drifts: np.ndarray | None = None
     run_chaos: Callable[..., Any] | None = None
-    check_chaos: Callable[..., str | None] = _chaos_everywhere
+    check_chaos: Callable[[Mapping[str, Any]], str | None] = _chaos_everywhere
     make_tangent: Callable[..., Any] | None = None  # None: the shared Tangent (filled in below)
 
     def default_settings(self) -> dict[str, Any]:

@@ -128,12 +128,11 @@ def chaos_schemes() -> tuple[str, ...]:
     return tuple(record.spec.name for record in _records() if record.run_chaos is not None)
 
 
-def chaos_refusal(name: str, settings: dict[str, Any] | None = None, forces: Any = None) -> str | None:
-    """One line saying why scheme ``name`` with ``settings`` (and ``forces``, a run's
-    :class:`~orbitsim.forces.table.ForceSet`) cannot run the variational equations (naming the
-    schemes that can), or None when it can."""
+def chaos_refusal(name: str, settings: dict[str, Any] | None = None) -> str | None:
+    """One line saying why scheme ``name`` with ``settings`` cannot run the variational equations
+    (naming the schemes that can), or None when it can."""
     record = get_integrator(name)
     if record.run_chaos is None:
         return (f"integrator {record.spec.name!r} has no variational equations, so no chaos indicators; "
                 f"schemes that have them: {', '.join(chaos_schemes())}")
-    return record.check_chaos(record.validate_settings(settings), forces)
+    return record.check_chaos(record.validate_settings(settings))

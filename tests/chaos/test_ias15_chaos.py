@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 import rebound
 
+from orbitsim.chaos.megno import megno_start
 from orbitsim.chaos.run import ChaosResult, chaos_run
-from orbitsim.forces.table import GR, HARMONICS, N_PARAMS, ForceSet, empty_force_set
+from orbitsim.forces.table import GR, N_PARAMS, P_C, ForceSet
 from orbitsim.integrators.ias15.core import COUNT_ACCEPTED, IAS15Work
 from orbitsim.integrators.ias15.tangent import IAS15Tangent
 from orbitsim.integrators.registry import chaos_refusal, get_integrator
@@ -179,18 +180,51 @@ def test_a_collision_stops_the_run_with_ias15s_own_message() -> None:
     assert message is not None and "\n" not in message and "IAS15's step fell" in message
 
 
-def _forces(*ids: int, n: int = 3) -> ForceSet:
-    k = len(ids)
-    return ForceSet(np.array(ids, dtype=np.int64), np.zeros(k, dtype=np.int64), np.ones((k, N_PARAMS)),
-                    np.zeros((k, 3, n)))
-
-
-def test_ias15_refuses_forces_without_variational_equations_in_one_line() -> None:
-    assert chaos_refusal("ias15") is None and chaos_refusal("ias15", {"adaptive": False, "epsilon": 1e-8}) is None
-    assert chaos_refusal("ias15", None, empty_force_set(3)) is None
-    velocity = chaos_refusal("ias15", None, _forces(GR))
-    assert velocity is not None and "\n" not in velocity and "gr" in velocity and "velocit" in velocity
-    position = chaos_refusal("ias15", None, _forces(HARMONICS))
-    assert position is not None and "\n" not in position and "harmonics" in position and "not built" in position
+def test_every_ias15_setting_has_variational_equations() -> None:
+    for settings in (None, {"adaptive": False}, {"epsilon": 0.0}, {"epsilon": 1e-6, "min_dt": 1e-4, "first_dt": 0.1}):
+        assert chaos_refusal("ias15", settings) is None
     with pytest.raises(ValueError, match="epsilon"):  # a bad setting is the settings' own one-line error
         chaos_refusal("ias15", {"epsilon": -1.0})
+
+
+def _gr_context(n: int):
+    """A force context with ``gr`` (velocity-dependent: its derivative is not built) for N bodies."""
+    from orbitsim.forces.hooks import forced_context
+    from orbitsim.physics.force_context import make_force
+
+    params = np.zeros((1, N_PARAMS))
+    params[0, P_C] = 1e4
+    gr = ForceSet(np.array([GR]), np.array([0]), params, np.zeros((1, 3, n)))
+    return forced_context(make_force(1.0, 0.0, n), gr, n)
+
+
+def test_the_tangent_accelerations_refuse_a_force_without_a_derivative() -> None:
+    # The front door (chaos_refusal with the forces' table) refuses forces in one line; behind it, the
+    # tangent accelerations every IAS15 tangent step and MEGNO read (with the hook of
+    # orbitsim/forces/tangent.py) do not compile for a force whose derivative is not built.
+    from numba.core.errors import TypingError
+
+    from orbitsim.integrators.ias15.tangent import refresh_tangent
+
+    case = _case(chaotic=False)
+    tangent = get_integrator("ias15").make_tangent(np.ones((3, 3)), np.ones((3, 3)))
+    with pytest.raises(TypingError, match="variational equations of"):
+        refresh_tangent(np.ascontiguousarray(case.x.T), case.m, _gr_context(3), tangent)
+
+
+@pytest.mark.slow  # typing a gr context compiles the force kernels before the refusal: ~20 s, every time
+def test_a_force_without_a_derivative_never_runs_with_newtonian_variations() -> None:
+    # The whole variational run, not only its tangent accelerations: it does not compile, so it cannot run.
+    from numba.core.errors import TypingError
+
+    case = _case(chaotic=False)
+    record = get_integrator("ias15")
+    n = case.m.shape[0]
+    pos, vel = np.ascontiguousarray(case.x.T), np.ascontiguousarray(case.v.T)
+    tangent = record.make_tangent(np.ascontiguousarray(case.variation[:, :3].T),
+                                  np.ascontiguousarray(case.variation[:, 3:].T))
+    out = (np.zeros(2), np.zeros(2, dtype=np.int64), np.zeros((2, 8)), np.zeros((0, 2, 3, n)), np.zeros((1, n)))
+    with pytest.raises(TypingError, match="variational equations of"):
+        record.run_chaos((pos, vel, np.zeros((3, n)), case.m), tangent, _gr_context(n), 1.0,
+                         record.make_work(case.m, 1.0), 0.0, np.int64(0), np.array([0, 1]), np.ones(2, dtype=np.bool_),
+                         out, np.zeros((2, 2)), megno_start(0.0))

@@ -40,7 +40,7 @@ orbit gets there (|delta| > 1e60), long after round-off has decorrelated any two
 
 Forces: the bodies feel them as in the plain step, the tangent gets the position forces' derivatives
 (:func:`orbitsim.forces.tangent.add_tangent_kick_forces`, which refuses unbuilt ones when typed); the
-front door, :func:`orbitsim.integrators.ias15.chaos.check_chaos`, refuses them in one line first.
+front door (:func:`orbitsim.integrators.registry.chaos_refusal`) refuses them in one line first.
 """
 
 from __future__ import annotations

@@ -318,9 +318,9 @@ def run_chaos(state, tangent, force, dt, work, t0, n_done, targets, record, out,
                              out, indicators, megno)
 
 
-def check_chaos(settings: Mapping[str, Any], forces: Any = None) -> str | None:
+def check_chaos(settings: Mapping[str, Any]) -> str | None:
     """The variational map is built for Jacobi coordinates without correctors (as REBOUND's WHFast
-    refuses its variational particles in other coordinates); forces are the force hooks' to refuse."""
+    refuses its variational particles in other coordinates)."""
     if settings.get("coordinates", "jacobi") != "jacobi":
         return ("wisdom_holman's variational equations need coordinates 'jacobi' (as REBOUND's WHFast), "
                 f"got {settings['coordinates']!r}")
