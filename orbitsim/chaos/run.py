@@ -113,9 +113,11 @@ def chaos_run(
     if pos.shape != (3, n) or vel.shape != (3, n):
         raise ValueError(f"positions and velocities must have shape ({n}, 3)")
     force = make_force(G, softening, n)
-    work = record.make_work(m, G, settings) if resume is None or resume.work is None else _copied(resume.work)
+    work = record.make_work(m, G, settings)
     acc = np.zeros((3, n))
     accelerations_at(force, pos, m, acc)
+    if resume is not None and resume.work is not None:
+        work = _copied(resume.work)  # what the scheme carries from step to step: ias15's clock and polynomials
     last = n_done + int(steps)
     targets = np.unique(np.append(np.arange(n_done, last + 1, every, dtype=np.int64), last))
     if resume is not None:
