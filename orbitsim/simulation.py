@@ -203,7 +203,7 @@ class Simulation:
         if rows.shape != (self.n, 6) or not np.all(np.isfinite(rows)) or not np.any(rows != 0.0):
             raise SimulationError(f"chaos must be {self.n} finite rows of 6 numbers (dx dy dz dvx dvy dvz per body), "
                                   f"not all zero; got shape {rows.shape}")
-        self.variational = VariationalState(rows[:, :3].T, rows[:, 3:].T, self.t0)
+        self.variational = VariationalState(rows[:, :3].T, rows[:, 3:].T, self.t0, self.scheme.make_tangent)
 
     @property
     def halted(self) -> Any:

@@ -7,7 +7,10 @@ scheme's work, the :class:`~orbitsim.integrators.base.Tangent` and MEGNO's sums,
 jitted loop. The initial variation is either given (``variation``: (N, 6) rows dx dy dz dvx dvy
 dvz per body, e.g. REBOUND's variational particle after ``init_megno``) or drawn from ``seed``
 (:func:`orbitsim.chaos.megno.random_initial_variation`). ``resume`` continues a :class:`ChaosResult`
-with the same bits as an uninterrupted run.
+with the same bits as an uninterrupted run, from copies of its state, its tangent record (the
+scheme's ``make_tangent``) and its ``work`` (an adaptive scheme's clock and polynomials), with the
+first call's settings. For ias15, ``dt`` is the output grid, as in its plain run: IAS15 chooses its
+own steps and lands exactly on each grid time.
 """
 
 from __future__ import annotations
@@ -39,6 +42,10 @@ class ChaosResult:
     sums: MegnoState  #: MEGNO's running sums
     steps_done: int  #: steps taken since the run's t0
     finite: bool  #: False when the run stopped at a non-finite state or a failed step
+    #: The scheme's tangent record (its ``make_tangent``; ``dpos``, ``dvel`` are the arrays above) and
+    #: its ``work`` at the end: what ``resume`` continues from (ias15's polynomials and clock are there).
+    tangent: Any = None
+    work: Any = None
 
 
 def _variation(variation: Any, seed: int | None, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -50,6 +57,13 @@ def _variation(variation: Any, seed: int | None, n: int) -> tuple[np.ndarray, np
     if not np.all(np.isfinite(rows)) or not np.any(rows != 0.0):
         raise ValueError("variation must be finite and not all zero")
     return np.ascontiguousarray(rows[:, :3].T), np.ascontiguousarray(rows[:, 3:].T)
+
+
+def _copied(record: Any) -> Any:
+    """A copy of a scheme's record (an array, or a NamedTuple of arrays and scalars) sharing no array."""
+    if isinstance(record, np.ndarray):
+        return record.copy()
+    return type(record)(*(np.copy(f) if isinstance(f, np.ndarray) else f for f in record))
 
 
 def chaos_run(
@@ -78,7 +92,6 @@ def chaos_run(
     Raises ValueError, one line, for a scheme, settings or a force without variational equations, a
     bad variation, or bad numbers.
     """
-    from orbitsim.integrators.base import make_tangent  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.integrators.registry import chaos_refusal, get_integrator  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.physics.diagnostics import potential_rows_scratch  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.physics.force_context import accelerations_at, make_force  # noqa: PLC0415 - lazy: loads numba
@@ -96,11 +109,12 @@ def chaos_run(
     if resume is None:
         pos = np.array(np.asarray(positions, dtype=np.float64).T, order="C")
         vel = np.array(np.asarray(velocities, dtype=np.float64).T, order="C")
-        tangent = make_tangent(*_variation(variation, seed, n))
+        tangent = record.make_tangent(*_variation(variation, seed, n))
         sums, n_done = megno_start(t0), 0
     else:
         pos, vel = resume.positions.copy(), resume.velocities.copy()
-        tangent = make_tangent(resume.dpos, resume.dvel, resume.halvings)
+        tangent = (record.make_tangent(resume.dpos, resume.dvel, resume.halvings) if resume.tangent is None
+                   else _copied(resume.tangent))
         sums, n_done = resume.sums, resume.steps_done
     if pos.shape != (3, n) or vel.shape != (3, n):
         raise ValueError(f"positions and velocities must have shape ({n}, 3)")
@@ -114,6 +128,8 @@ def chaos_run(
     work = record.make_work(m, G, settings)
     acc = np.zeros((3, n))
     accelerations_at(force, pos, m, acc)
+    if resume is not None and resume.work is not None:
+        work = _copied(resume.work)  # what the scheme carries from step to step: ias15's clock and polynomials
     last = n_done + int(steps)
     targets = np.unique(np.append(np.arange(n_done, last + 1, every, dtype=np.int64), last))
     if resume is not None:
@@ -125,4 +141,5 @@ def chaos_run(
         np.ones(targets.shape[0], dtype=np.bool_), buffers.views(potential_rows_scratch(n)), indicators, sums)
     k = int(written)
     return ChaosResult(buffers.times[:k].copy(), indicators[:k, 0].copy(), indicators[:k, 1].copy(), pos, vel,
-                       tangent.dpos, tangent.dvel, int(tangent.halvings[0]), sums, int(n_end), bool(finite))
+                       tangent.dpos, tangent.dvel, int(tangent.halvings[0]), sums, int(n_end), bool(finite), tangent,
+                       work)

@@ -16,17 +16,12 @@ import numpy as np
 
 from orbitsim.chaos.megno import MEGNO_FIELDS, MegnoState, megno_start
 from orbitsim.forces.compat import TANGENT_BUILT, check_chaos_forces
-from orbitsim.integrators.base import Tangent, make_tangent
+from orbitsim.integrators.base import make_tangent
 
 __all__ = ["CHAOS_SERIES", "VariationalState", "forces_with_derivatives", "variational_refusal"]
 
 #: The per-sample series a variational run adds to its samples (trace datasets of these names).
 CHAOS_SERIES = ("megno", "mlce")
-#: The tangent arrays a checkpoint keeps (every field of :class:`~orbitsim.integrators.base.Tangent`:
-#: ``dacc`` and ``scratch`` too, as a checkpoint keeps an integrator's scratch, so nothing is recomputed).
-_TANGENT_ARRAYS = Tangent._fields
-
-
 class VariationalState:
     """The tangent vector (:class:`~orbitsim.integrators.base.Tangent`) and MEGNO's sums of one run.
 
@@ -36,10 +31,15 @@ class VariationalState:
         The initial tangent vector (copied).
     t0 : float
         The time the indicators start from (REBOUND's ``init_megno`` time: the run's start).
+    make : callable
+        The scheme's tangent record maker (its ``make_tangent``: the shared
+        :class:`~orbitsim.integrators.base.Tangent`, or IAS15's with its tangent polynomial). A
+        checkpoint keeps every field of that record (``dacc`` and scratch too, as a checkpoint keeps an
+        integrator's scratch, so nothing is recomputed).
     """
 
-    def __init__(self, dpos: np.ndarray, dvel: np.ndarray, t0: float) -> None:
-        self.tangent = make_tangent(dpos, dvel)
+    def __init__(self, dpos: np.ndarray, dvel: np.ndarray, t0: float, make: Any = make_tangent) -> None:
+        self.tangent = make(dpos, dvel)
         self.megno: MegnoState = megno_start(t0)
         self.indicators = np.zeros((0, 2))
 
@@ -74,7 +74,7 @@ class VariationalState:
         """Copies of the whole state by checkpoint dataset name: the tangent's arrays, and MEGNO's sums
         (``megno_sums``, float64, in :data:`~orbitsim.chaos.megno.MEGNO_FIELDS` order without ``n``;
         ``megno_updates``, int64)."""
-        arrays = {name: np.array(getattr(self.tangent, name)) for name in _TANGENT_ARRAYS}
+        arrays = {name: np.array(getattr(self.tangent, name)) for name in self.tangent._fields}
         arrays["megno_sums"] = np.array([getattr(self.megno, name) for name in MEGNO_FIELDS if name != "n"],
                                         dtype=np.float64)
         arrays["megno_updates"] = np.array([self.megno.n], dtype=np.int64)
@@ -82,10 +82,10 @@ class VariationalState:
 
     def restore(self, arrays: dict[str, np.ndarray]) -> None:
         """Put :meth:`arrays`' state back in place; ValueError (one line) if it does not fit this run."""
-        names = (*_TANGENT_ARRAYS, "megno_sums", "megno_updates")
+        names = (*self.tangent._fields, "megno_sums", "megno_updates")
         if sorted(arrays) != sorted(names):
             raise ValueError(f"the checkpoint's variational state has {sorted(arrays)}, the run needs {sorted(names)}")
-        for name in _TANGENT_ARRAYS:
+        for name in self.tangent._fields:
             have, saved = getattr(self.tangent, name), arrays[name]
             if have.shape != saved.shape or have.dtype != saved.dtype:
                 raise ValueError(f"the checkpoint's tangent {name} has shape {saved.shape}, the run needs {have.shape}")

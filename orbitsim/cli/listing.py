@@ -16,8 +16,9 @@ from orbitsim.cli.errors import one_line, reports_errors
                    "Example: orbitsim list integrators --settings")
 @reports_errors
 def command(what: str | None, settings: bool) -> None:
-    """List integrators (order, symplecticity), bundled scenarios (N, integrator, description),
-    bundled sweeps (base scenario, file) or bundled benchmark matrices (groups, file).
+    """List integrators (order, symplecticity, variational equations for MEGNO), bundled scenarios
+    (N, integrator, description), bundled sweeps (base scenario, file) or bundled benchmark matrices
+    (groups, file).
 
     With no argument, lists all four. Bundled files run by name: `orbitsim run NAME`,
     `orbitsim batch NAME`, `orbitsim bench NAME`; copy the file listed to start your own.
@@ -43,12 +44,13 @@ def command(what: str | None, settings: bool) -> None:
 
 
 def _integrators() -> None:
-    from orbitsim.integrators.registry import INTEGRATORS
+    from orbitsim.integrators.registry import RECORDS
 
     rows = [(s.name, ", ".join(s.aliases) or "-", str(s.order), "adaptive" if s.adaptive else "fixed",
              "yes" if s.symplectic else "no", "yes" if s.reversible else "no", str(s.force_evals),
-             f"{s.summary} [{s.reference}]") for s in INTEGRATORS]
-    _table(("integrator", "aliases", "order", "step", "symplectic", "reversible", "forces/step",
+             "yes" if record.run_chaos is not None else "no", f"{s.summary} [{s.reference}]")
+            for record in RECORDS for s in (record.spec,)]
+    _table(("integrator", "aliases", "order", "step", "symplectic", "reversible", "forces/step", "variational",
             "summary [reference]"), rows)
 
 

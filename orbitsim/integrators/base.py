@@ -52,6 +52,10 @@ it and a default where a scheme has nothing to say. Callers use the record's fie
     Default: None, a scheme without variational equations (:func:`chaos_schemes` lists the others).
 18. ``check_chaos(settings) -> str | None``: why these settings have no variational equations (one
     line), or None. Default: None (every setting has them).
+19. ``make_tangent(dpos, dvel, halvings=0) -> tangent``: the scheme's tangent record for ``run_chaos``,
+    holding copies of the (3, N) tangent vector; whatever its type, it has ``dpos``, ``dvel`` and
+    ``halvings`` (int64 (1,)) as :class:`Tangent` has. Default: :func:`make_tangent`. ias15's carries
+    its tangent polynomial beside them (:class:`~orbitsim.integrators.ias15.tangent.IAS15Tangent`).
 
 One loop, each scheme's own steps
 ---------------------------------
@@ -196,6 +200,7 @@ class Integrator:
     drifts: np.ndarray | None = None
     run_chaos: Callable[..., Any] | None = None
     check_chaos: Callable[[Mapping[str, Any]], str | None] = _chaos_everywhere
+    make_tangent: Callable[..., Any] | None = None  # None: the shared Tangent (filled in below)
 
     def default_settings(self) -> dict[str, Any]:
         """Every setting's default, in the scheme's order (empty for a scheme without settings)."""
@@ -204,6 +209,8 @@ class Integrator:
     def __post_init__(self) -> None:
         if self.make_work is None:
             object.__setattr__(self, "make_work", _ScratchWork(self.spec.work_slots))
+        if self.make_tangent is None:
+            object.__setattr__(self, "make_tangent", make_tangent)
         if (self.kicks is None) != (self.drifts is None):
             raise ValueError(f"{self.spec.name}: a composition declares both kicks and drifts")
 

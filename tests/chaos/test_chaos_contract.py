@@ -16,7 +16,7 @@ from orbitsim.physics.coordinates import jacobi_weights
 from orbitsim.physics.force_context import make_force
 from orbitsim.simulation import simulate
 
-CHAOS = ("verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8", "wisdom_holman")
+CHAOS = ("verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8", "wisdom_holman", "ias15")
 
 
 def _system(*planets: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -70,8 +70,9 @@ def test_bad_variation_is_refused() -> None:
 
 
 # dt per scheme: small enough that each scheme resolves the inner orbit (P ~ 1.84); higher orders afford more.
+# ias15's dt is its output grid (it chooses its own steps between grid points): 10 periods.
 STEP_FRACTION = {"verlet": 1 / 100, "leapfrog": 1 / 100, "leapfrog4": 1 / 30, "leapfrog6": 1 / 15,
-                 "leapfrog8": 1 / 10, "wisdom_holman": 0.07}
+                 "leapfrog8": 1 / 10, "wisdom_holman": 0.07, "ias15": 10.0}
 
 
 @pytest.mark.parametrize("name", CHAOS)
@@ -86,7 +87,8 @@ def test_regular_orbit_megno_tends_to_two(name: str) -> None:
 
 
 @pytest.mark.parametrize(("name", "dt", "floor"), [("wisdom_holman", 0.001, 50.0), ("leapfrog4", 0.005, 50.0),
-                                                   ("leapfrog", 0.001, 25.0), ("verlet", 0.001, 25.0)])
+                                                   ("leapfrog", 0.001, 25.0), ("verlet", 0.001, 25.0),
+                                                   ("ias15", 100.0, 50.0)])
 def test_chaotic_pair_megno_grows_by_t_1000(name: str, dt: float, floor: float) -> None:
     # REBOUND's chaotic case: MEGNO > 50 by t = 1000 (its WHFast and IAS15). A chaotic MEGNO grows as
     # lambda t / 2 from an onset (t ~ 400 here) that each numerical trajectory places differently:

@@ -218,3 +218,27 @@ def test_a_force_whose_derivative_is_built_enters_the_scenario_run(tmp_path: Pat
         with h5py.File(tmp_path / f"{name}.h5", "r") as f:
             megno.append(f["megno"][()])
     assert np.all(np.isfinite(megno[1])) and not np.array_equal(megno[0], megno[1])  # a run of the forced system
+
+
+IAS15_PAIR = {**{k: v for k, v in PAIR.items() if k != "steps"}, "integrator": "ias15", "dt": 0.01, "t_end": 200.0,
+              "output": {"interval": 5.0, "chaos": {"seed": 4}, "checkpoint": {"every": 4}}}
+
+
+def test_an_ias15_scenario_run_is_chaos_run_and_extends_to_the_same_bits(tmp_path: Path) -> None:
+    # IAS15's tangent record is its own (its tangent polynomial): the trace and the checkpoints carry it
+    sc = scenario_from_dict(IAS15_PAIR)
+    reference = run_scenario(sc, tmp_path / "ref.h5", handle_signals=False)
+    assert reference.status == "complete"
+    # chaos_run's dt for IAS15 is the output grid (the scenario's interval); the scenario's dt its first trial step
+    direct = chaos_run(sc.masses, sc.positions, sc.velocities, integrator="ias15", dt=sc.grid_dt, steps=40,
+                       every=1, settings=sc.run_settings, seed=sc.chaos.seed)
+    with h5py.File(tmp_path / "ref.h5", "r") as f:
+        assert f["megno"][()].tobytes() == direct.megno.tobytes()  # the same kernel, the same bits
+        assert f["mlce"][()].tobytes() == direct.mlce.tobytes()
+    # run half, then extend from its checkpoint: the tangent record (IAS15's own) and MEGNO's sums carry on
+    half = scenario_from_dict({**IAS15_PAIR, "t_end": 100.0})
+    assert run_scenario(half, tmp_path / "out.h5", handle_signals=False).status == "complete"
+    plan = prepare_extension(tmp_path / "out.h5", t_end=200.0)
+    second = run_scenario(plan.scenario, plan.output, start=plan.start, handle_signals=False)
+    assert second.status == "complete" and second.chaos == reference.chaos
+    assert_same_datasets(tmp_path / "ref.h5", tmp_path / "out.h5")

@@ -169,6 +169,13 @@ def test_validate_ok_and_resolved(tiny: Path) -> None:
 def test_list(tmp_path: Path) -> None:
     code, text = invoke("list", "integrators")
     assert code == 0 and "symplectic" in text and "leapfrog4" in text and "order" in text
+    from orbitsim.integrators.registry import chaos_schemes
+
+    header, *rows = text.splitlines()
+    at = header.index("variational")  # the table's columns are aligned: each row's cell starts there
+    variational = {row.split()[0]: row[at:].split()[0] for row in rows}
+    assert variational["ias15"] == "yes" and variational["rk4"] == "no"
+    assert {name for name, says in variational.items() if says == "yes"} == set(chaos_schemes())
     code, text = invoke("list", "scenarios")
     assert code == 0 and "figure_eight" in text and "16384" in text and "INVALID" not in text
     code, text = invoke("list")

@@ -201,7 +201,7 @@ def test_rescaling_by_a_power_of_two_moves_no_bit_of_megno() -> None:
         assert integrate_to_tangent(pos, vel, acc, s.m, force, work, tan, 200.0) == REACHED
         runs.append((pos, work, tan))
     (pos_a, work_a, tan_a), (pos_b, work_b, tan_b) = runs
-    assert tan_a.rescalings[0] == 0 and tan_b.rescalings[0] == 1
+    assert tan_a.halvings[0] == 0 and tan_b.halvings[0] == 1
     assert np.array_equal(pos_a, pos_b) and np.array_equal(work_a.counts, work_b.counts)
     assert np.array_equal(tan_a.dpos * 2.0**100, tan_b.dpos) and np.array_equal(tan_a.dvel * 2.0**100, tan_b.dvel)
     assert np.array_equal(tan_a.megno, tan_b.megno)

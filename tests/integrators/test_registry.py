@@ -107,7 +107,7 @@ def test_every_record_has_step_run_and_run_watched(spec: IntegratorSpec) -> None
 
 #: Every hook of the record (orbitsim.integrators.base's numbered contract) that is a function.
 HOOKS = ("step", "run", "run_watched", "validate_settings", "make_work", "carry_over", "check_bodies", "clock_time",
-         "failure_message", "counters", "take_merges", "handoff", "check_chaos")
+         "failure_message", "counters", "take_merges", "handoff", "check_chaos", "make_tangent")
 
 
 def test_the_record_declares_every_hook() -> None:
@@ -125,6 +125,12 @@ def test_run_chaos_is_declared_or_none_and_the_defaults_have_variations(spec: In
         return
     assert callable(record.run_chaos)
     assert record.check_chaos(record.default_settings()) is None
+    # item 19: whatever the scheme's tangent record, it holds copies of the vector and the halvings count
+    dpos, dvel = np.arange(6.0).reshape(3, 2), -np.arange(6.0).reshape(3, 2)
+    tangent = record.make_tangent(dpos, dvel, 3)
+    assert np.array_equal(tangent.dpos, dpos) and np.array_equal(tangent.dvel, dvel)
+    assert not np.shares_memory(tangent.dpos, dpos) and not np.shares_memory(tangent.dvel, dvel)
+    assert tangent.halvings.dtype == np.int64 and tangent.halvings.tolist() == [3]
 
 
 @pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)

@@ -5,8 +5,10 @@ prediction); :mod:`.tables`, the Gauss-Radau constants (and the quadrature weigh
 :mod:`.tangent`, the step with first-order variational equations and MEGNO, as REBOUND's IAS15
 integrates its variational particles (the tangent components ride in the same predictor-corrector
 and count in its convergence test; the step control reads the bodies only; the MEGNO integrand is
-summed with the Radau weights over the nodes); this module, the scheme's record (:data:`IAS15`) and
-its contract with the run loop, which for an adaptive scheme reads:
+summed with the Radau weights over the nodes); :mod:`.chaos`, that step behind the run contract's
+variational run (``run_chaos``, on the same output grid as :func:`run`); :mod:`.grid`, the output
+grid's clock; this module, the scheme's record (:data:`IAS15`) and its contract with the run loop,
+which for an adaptive scheme reads:
 
 * the run's grid is its output grid. ``dt`` given to :func:`run` is the sampling interval: the
   "step" ``n`` of a trace is the sample at time ``t0 + n * dt`` (the last one at ``t_end`` when
@@ -43,6 +45,7 @@ from orbitsim.integrators.base import (
     sample_loop,
     setting_defaults,
 )
+from orbitsim.integrators.ias15.chaos import check_chaos, make_chaos_tangent, run_chaos
 from orbitsim.integrators.ias15.core import (
     CLOCK_DT,
     CLOCK_DT_LAST_DONE,
@@ -59,9 +62,10 @@ from orbitsim.integrators.ias15.core import (
     IAS15Work,
     step_try,
 )
+from orbitsim.integrators.ias15.grid import grid_target, sample_time, start_clock
 
-__all__ = ["IAS15", "SETTINGS", "SPEC", "carry_over", "clock_time", "counters", "failure_message", "make_work", "run",
-           "run_watched", "step", "validate_settings"]
+__all__ = ["IAS15", "SETTINGS", "SPEC", "carry_over", "check_chaos", "clock_time", "counters", "failure_message",
+           "make_chaos_tangent", "make_work", "run", "run_chaos", "run_watched", "step", "validate_settings"]
 
 SPEC = IntegratorSpec(
     name="ias15",
@@ -183,16 +187,6 @@ def failure_message(work: tuple[Any, ...]) -> str | None:
 
 
 @jit
-def _start_clock(work, t_now, dt_grid):
-    clock = work.clock
-    if clock[CLOCK_STARTED] == 0.0:
-        clock[CLOCK_T] = t_now
-        first = work.first_dt
-        clock[CLOCK_DT] = first if first != 0.0 else dt_grid
-        clock[CLOCK_STARTED] = 1.0
-
-
-@jit
 def _take_step(pos, vel, acc, m, force, work):
     """One accepted step (rejected tries retried, as REBOUND's ``reb_integrator_ias15_step``).
     Returns False, with the status in ``work``, when the clock cannot move or the state is lost."""
@@ -277,25 +271,16 @@ def integrate_to(pos, vel, acc, m, force, work, t_target, watch):
 
 
 @jit
-def _grid_time(work, t0, dt, n):
-    target = t0 + n * dt
-    t_end = work.t_end
-    if (dt > 0.0 and target > t_end) or (dt < 0.0 and target < t_end):
-        return t_end
-    return target
-
-
-@jit
 def advance_grid(pos, vel, acc, m, force, work, t0, dt, n_from, n_to, watch):
     """From grid point ``n_from`` to ``n_to``: adaptive steps landing on each grid time, or one
     constant step per grid point without adaptivity. Returns the grid points reached and how it
     ended (:data:`REACHED`, :data:`FAILED`, :data:`ACT`)."""
-    _start_clock(work, _grid_time(work, t0, dt, n_from), dt)
+    start_clock(work, grid_target(work, t0, dt, n_from), dt)
     adaptive = work.adaptive
     clock = work.clock
     for n in range(n_from + 1, n_to + 1):
         if adaptive:
-            result = integrate_to(pos, vel, acc, m, force, work, _grid_time(work, t0, dt, n), watch)
+            result = integrate_to(pos, vel, acc, m, force, work, grid_target(work, t0, dt, n), watch)
         else:
             clock[CLOCK_DT] = dt
             result = _watched_step(pos, vel, acc, m, force, work, watch)
@@ -320,13 +305,6 @@ def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
     """Grid points ``n_done`` to ``n_to`` (:func:`advance_grid` without events); False on a failure."""
     n_done, result = advance_grid(pos, vel, acc, m, force, work, t0, dt, n_done, n_to, None)
     return n_done, result == REACHED
-
-
-@jit_inline
-def sample_time(work, t0, n_done, dt):
-    """The time of a sample at grid point ``n_done``: the clock's (started there, if it is not yet)."""
-    _start_clock(work, _grid_time(work, t0, dt, n_done), dt)
-    return work.clock[CLOCK_T]
 
 
 @jit
@@ -372,4 +350,7 @@ IAS15 = Integrator(
     failure_message=failure_message,
     counters=counters,
     run_constants=RUN_CONSTANTS,
+    run_chaos=run_chaos,
+    check_chaos=check_chaos,
+    make_tangent=make_chaos_tangent,
 )

@@ -38,8 +38,9 @@ array linear in it (its polynomial, predictions, compensations, accelerations): 
 MEGNO reads keeps its bits (:func:`~orbitsim.chaos.megno.rescale_power_of_two`). Only a chaotic
 orbit gets there (|delta| > 1e60), long after round-off has decorrelated any two codes.
 
-Forces beyond Newtonian gravity: their derivative is not in J here, so a variational ias15 run with
-forces is refused at the front door; the kernels take the plain force context and evaluate gravity only.
+Forces: the bodies feel them as in the plain step, the tangent gets the position forces' derivatives
+(:func:`orbitsim.forces.tangent.add_tangent_kick_forces`, which refuses unbuilt ones when typed); the
+front door (:func:`orbitsim.integrators.registry.chaos_refusal`) refuses them in one line first.
 """
 
 from __future__ import annotations
@@ -58,6 +59,8 @@ from orbitsim.chaos.megno import (
     megno_update,
     megno_value,
 )
+from orbitsim.forces.hooks import add_forces, add_node_forces
+from orbitsim.forces.tangent import add_tangent_kick_forces
 from orbitsim.integrators.base import is_finite_state
 from orbitsim.integrators.ias15.core import (
     CLOCK_DT,
@@ -108,18 +111,16 @@ class IAS15Tangent(NamedTuple):
     csx: np.ndarray  #: (3N,)
     csv: np.ndarray
     megno: np.ndarray  #: (8,) the MEGNO sums in :class:`~orbitsim.chaos.megno.MegnoState` order (n as a float)
-    rescalings: np.ndarray  #: int64 (1,) power-of-two rescalings by 2^-200 so far
+    halvings: np.ndarray  #: int64 (1,) power-of-two rescalings by 2^-200 so far (as in base.Tangent)
 
 
 #: The names of the tangent record's fields, in order (a checkpoint saves them in this order).
 TANGENT_FIELDS = IAS15Tangent._fields
 
 
-def make_tangent(dpos: np.ndarray, dvel: np.ndarray, t0: float) -> IAS15Tangent:
-    """A tangent record starting from (``dpos``, ``dvel``), each (3, N), with MEGNO started at ``t0``.
-
-    ``dacc`` is zero until :func:`refresh_tangent` (which every loop here calls first) evaluates it.
-    """
+def make_tangent(dpos: np.ndarray, dvel: np.ndarray, t0: float = 0.0, halvings: int = 0) -> IAS15Tangent:
+    """A tangent record starting from (``dpos``, ``dvel``), each (3, N), with MEGNO started at ``t0``
+    and ``halvings`` rescalings counted. ``dacc`` is zero until :func:`refresh_tangent` evaluates it."""
     dpos = np.ascontiguousarray(dpos, dtype=np.float64).copy()
     dvel = np.ascontiguousarray(dvel, dtype=np.float64).copy()
     if dpos.shape != dvel.shape or dpos.ndim != 2 or dpos.shape[0] != 3:
@@ -132,7 +133,7 @@ def make_tangent(dpos: np.ndarray, dvel: np.ndarray, t0: float) -> IAS15Tangent:
         np.zeros_like(dpos),
         np.zeros(n3), np.zeros(n3),
         np.array(megno_start(t0), dtype=np.float64),
-        np.zeros(1, dtype=np.int64),
+        np.array([halvings], dtype=np.int64),
     )
 
 
@@ -157,6 +158,7 @@ def _write_megno(s, state):
 def refresh_tangent(pos, m, force, tan):
     """dacc = J(pos) dpos (before the first step, or after the tangent state was set from outside)."""
     tangent_accelerations(pos, m, force.G, force.eps2, tan.dpos, tan.dacc, ALL_PAIRS)
+    add_tangent_kick_forces(force, pos, m, tan.dpos, tan.dacc)  # nothing without forces
 
 
 @jit
@@ -231,7 +233,9 @@ def step_try_tangent(pos, vel, acc, m, force, work, tan, initial_t):
             _predict_positions(dpf, tx0, tv0, ta0, tb, tcsx, dt, hn)
             _predict_velocities(dvf, tv0, ta0, tb, tcsv, dt, hn)
             newtonian_accelerations(force, pos, m, at)
+            add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn)  # nothing without forces
             tangent_accelerations(pos, m, G, eps2, dpos, tat, ALL_PAIRS)
+            add_tangent_kick_forces(force, pos, m, dpos, tat)
             megno_sum += W[n] * (t_node - initial_t) * deltad_delta(dpos, dvel, tat)
             # pf and dpf are the corrector's scratch, as in step_try: every path out rewrites them.
             max_b6, max_a = _correct(n, atf, a0, g, b, csb, pf)
@@ -277,7 +281,9 @@ def step_try_tangent(pos, vel, acc, m, force, work, tan, initial_t):
     predict_next(ratio, e, b, e, b)
     predict_next(ratio, te, tb, te, tb)
     newtonian_accelerations(force, pos, m, acc)
+    add_forces(force, pos, vel, m, acc)
     tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+    add_tangent_kick_forces(force, pos, m, dpos, dacc)
     counts[COUNT_FORCE_EVALS] += 1
     counts[COUNT_ACCEPTED] += 1
     return True, dt_done * megno_sum
@@ -306,7 +312,7 @@ def _rescale_tangent(tan):
             for s in range(7):
                 for k in range(arr.shape[1]):
                     arr[s, k] *= f
-        tan.rescalings[0] += 1
+        tan.halvings[0] += 1
 
 
 @jit
