@@ -1,7 +1,8 @@
 """A trace's per-sample series, and every body's state per sample, as CSV (``orbitsim export --format csv``).
 
-* :func:`export_csv`: one row per sample (step, time, energies, momentum, angular momentum, and the
-  orbital elements the run recorded), and with ``positions`` every body's x, y, z, vx, vy, vz in long
+* :func:`export_csv`: one row per sample (step, time, energies, momentum, angular momentum, MEGNO and
+  the mLCE where the run recorded them (``output.chaos``), and the orbital elements the run
+  recorded), and with ``positions`` every body's x, y, z, vx, vy, vz in long
   format (one row per sample and body) beside it (:func:`positions_csv_path`).
 
 Floats are written with ``%.17g``, so each reads back to the same bits; a body name holding a comma,
@@ -25,6 +26,8 @@ from orbitsim.io.trace_reader import open_trace
 
 __all__ = ["export_csv", "positions_csv_path"]
 
+#: A chaos run's per-sample series (orbitsim.chaos.state.CHAOS_SERIES), columns after the momenta where present.
+CHAOS_COLUMNS = ("megno", "mlce")
 #: Samples per block when streaming a CSV: bounded memory for any trace length.
 CSV_BLOCK = 4096
 #: ``%.17g`` prints every float64 so that it reads back to the same bits.
@@ -46,9 +49,10 @@ def export_csv(trace: str | os.PathLike[str], output: str | os.PathLike[str], *,
             raise TraceError(f"{name}: the run did not record positions (output.positions: false); drop --positions")
         names = tuple(f["bodies/names"].asstr()[()])
         elements = [e for e in ELEMENTS if f"elements/{e}" in f]
+        chaos = [c for c in CHAOS_COLUMNS if c in f]
         with contextlib.ExitStack() as stack:
             series = stack.enter_context(pending_text(output))
-            _write_series(f, series.file, names, elements)
+            _write_series(f, series.file, names, elements, chaos)
             if positions:
                 bodies = stack.enter_context(pending_text(positions_csv_path(output)))
                 _write_positions(f, bodies.file, names)
@@ -56,9 +60,9 @@ def export_csv(trace: str | os.PathLike[str], output: str | os.PathLike[str], *,
             series.done()
 
 
-def _write_series(f: Any, out: IO[str], names: tuple[str, ...], elements: list[str]) -> None:
+def _write_series(f: Any, out: IO[str], names: tuple[str, ...], elements: list[str], chaos: list[str]) -> None:
     columns = ["sample", "step", "time", "kinetic", "potential", "energy", "energy_error", "px", "py", "pz",
-               "Lx", "Ly", "Lz", *(_text(f"{e}[{n}]") for e in elements for n in names)]
+               "Lx", "Ly", "Lz", *chaos, *(_text(f"{e}[{n}]") for e in elements for n in names)]
     out.write(",".join(columns) + "\n")
     count = int(f["time"].shape[0])
     for start in range(0, count, CSV_BLOCK):
@@ -66,6 +70,7 @@ def _write_series(f: Any, out: IO[str], names: tuple[str, ...], elements: list[s
         parts = [np.arange(start, stop)[:, None], f["step"][start:stop][:, None],
                  *(f[s][start:stop][:, None] for s in ("time", "kinetic", "potential", "energy", "energy_error")),
                  f["momentum"][start:stop], f["angular_momentum"][start:stop],
+                 *(f[c][start:stop][:, None] for c in chaos),
                  *(f[f"elements/{e}"][start:stop] for e in elements)]
         _rows(out, np.hstack([np.asarray(p, dtype=np.float64) for p in parts]), ints=2)
 

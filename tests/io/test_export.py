@@ -107,6 +107,30 @@ def test_csv_includes_recorded_elements(tmp_path: Path) -> None:
     assert float((tmp_path / "el.csv").read_text().splitlines()[-1].split(",")[header.index("a[inner]")]) == a
 
 
+def test_csv_includes_megno_and_mlce_of_a_chaos_run(tmp_path: Path) -> None:
+    from orbitsim.chaos.state import CHAOS_SERIES
+    from orbitsim.io.csv_export import CHAOS_COLUMNS
+
+    assert CHAOS_COLUMNS == CHAOS_SERIES  # written out so that the CSV writer loads no numba
+    doc = {"name": "ch", "integrator": "leapfrog4", "dt": 0.01, "steps": 50,
+           "output": {"every": 5, "chaos": {"seed": 1}}, "bodies": THREE_BODIES}
+    run_scenario(scenario_from_dict(doc), tmp_path / "ch.h5")
+    assert export(str(tmp_path / "ch.h5"), "--format", "csv", "-o", str(tmp_path / "ch.csv")).exit_code == 0
+    lines = (tmp_path / "ch.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    assert header[header.index("Lz") + 1:header.index("Lz") + 3] == ["megno", "mlce"]
+    with h5py.File(tmp_path / "ch.h5") as f:
+        megno, mlce = f["megno"][()], f["mlce"][()]
+    rows = [line.split(",") for line in lines[1:]]
+    assert len(rows) == megno.shape[0] == 11
+    # %.17g reads back to the same bits
+    assert np.array_equal([float(r[header.index("megno")]) for r in rows], megno)
+    assert np.array_equal([float(r[header.index("mlce")]) for r in rows], mlce)
+    run_scenario(scenario_from_dict({**doc, "name": "plain", "output": {"every": 5}}), tmp_path / "plain.h5")
+    assert export(str(tmp_path / "plain.h5"), "--format", "csv", "-o", str(tmp_path / "plain.csv")).exit_code == 0
+    assert "megno" not in (tmp_path / "plain.csv").read_text().splitlines()[0]  # only where the run recorded it
+
+
 def test_state_exports_need_positions(tmp_path: Path) -> None:
     doc = {"name": "blind", "integrator": "leapfrog", "dt": 0.01, "steps": 5,
            "output": {"every": 1, "positions": False}, "bodies": THREE_BODIES}
