@@ -101,13 +101,13 @@ def megno_update(state, t, dY, dt_done):
 
 
 @jit_inline
-def deltad_delta(dpos, dvel, dacc):
-    """(delta' . delta) / (delta . delta) for a tangent state (dr, dv) with da = J dr (each (3, N)).
+def deltad_delta_sums(dpos, dvel, dacc, deltad, delta2):
+    """:func:`deltad_delta`'s two running sums, delta' . delta and delta . delta, continued from
+    ``deltad``, ``delta2`` over the bodies (columns) of ``dpos``, ``dvel``, ``dacc``, body by body.
 
-    Summed body by body in REBOUND's order (``reb_tools_megno_deltad_delta``).
+    A caller that holds the bodies in two parts (orbitsim.ensemble.restricted) continues the sums
+    from one part to the next and gets the bits of one call over all of them.
     """
-    deltad = 0.0
-    delta2 = 0.0
     for i in range(dpos.shape[1]):
         deltad += dvel[0, i] * dpos[0, i]
         deltad += dvel[1, i] * dpos[1, i]
@@ -121,7 +121,27 @@ def deltad_delta(dpos, dvel, dacc):
         delta2 += dvel[0, i] * dvel[0, i]
         delta2 += dvel[1, i] * dvel[1, i]
         delta2 += dvel[2, i] * dvel[2, i]
+    return deltad, delta2
+
+
+@jit_inline
+def deltad_delta(dpos, dvel, dacc):
+    """(delta' . delta) / (delta . delta) for a tangent state (dr, dv) with da = J dr (each (3, N)).
+
+    Summed body by body in REBOUND's order (``reb_tools_megno_deltad_delta``).
+    """
+    deltad, delta2 = deltad_delta_sums(dpos, dvel, dacc, 0.0, 0.0)
     return deltad / delta2
+
+
+@jit_inline
+def tangent_norm2(dpos, dvel):
+    """|delta|^2 of a tangent state, components outermost (the sum :func:`rescale_power_of_two` tests)."""
+    norm2 = 0.0
+    for c in range(3):
+        for i in range(dpos.shape[1]):
+            norm2 += dpos[c, i] * dpos[c, i] + dvel[c, i] * dvel[c, i]
+    return norm2
 
 
 #: |delta|^2 beyond which :func:`rescale_power_of_two` scales the tangent state down (2^200 in |delta|).
@@ -137,11 +157,7 @@ def rescale_power_of_two(dpos, dvel):
     """
     count = 0
     while True:
-        norm2 = 0.0
-        for c in range(3):
-            for i in range(dpos.shape[1]):
-                norm2 += dpos[c, i] * dpos[c, i] + dvel[c, i] * dvel[c, i]
-        if not norm2 > RESCALE_ABOVE:
+        if not tangent_norm2(dpos, dvel) > RESCALE_ABOVE:
             return count
         for c in range(3):
             for i in range(dpos.shape[1]):

@@ -40,7 +40,16 @@ import numpy as np
 from numba import prange
 
 from orbitsim._jit import jit, jit_inline, jit_parallel_exact
-from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, lyapunov, megno_update, megno_value
+from orbitsim.chaos.megno import (
+    RESCALE_ABOVE,
+    MegnoState,
+    deltad_delta_sums,
+    lyapunov,
+    megno_update,
+    megno_value,
+    rescale_power_of_two,
+    tangent_norm2,
+)
 from orbitsim.ensemble.kernels import _energy, _stop_reason, jacobi_elements_ae, track_orbit
 from orbitsim.ensemble.status import (
     COLLIDED,
@@ -98,6 +107,24 @@ def _put(rec, s, block, q, src):
 
 
 @jit_inline
+def _put_com(rec, s, column, src):
+    """Column 0 of ``src`` (3, q), a centre of mass, into ``rec[s, column:column + 3]``."""
+    for c in range(3):
+        rec[s, column + c] = src[c, 0]
+
+
+@jit_inline
+def _scaled_massive(rec, s, q, scale, whole):
+    """The massive bodies' tangent state after step ``s`` times ``scale`` into columns 0..q-1 of ``whole``
+    (3, 3, N): dpos, dvel, dacc, the values the whole-system step holds for a pixel rescaled so far."""
+    for c in range(3):
+        for i in range(q):
+            whole[0, c, i] = scale * _get(rec, s, V_DPOS, q, c, i)
+            whole[1, c, i] = scale * _get(rec, s, V_DVEL, q, c, i)
+            whole[2, c, i] = scale * _get(rec, s, V_DACC, q, c, i)
+
+
+@jit_inline
 def _get(rec, s, block, q, c, i):
     return rec[s, R_VECTORS + block * 3 * q + c * q + i]
 
@@ -119,18 +146,16 @@ def massive_block(pos, vel, dpos, dvel, m, force, dt, weights, mu, scratch, esca
         inertial_to_jacobi(vel, weights, jvel)
         inertial_to_jacobi(dpos, weights, djpos)
         inertial_to_jacobi(dvel, weights, djvel)
-        for c in range(3):
-            rec[s, R_COM_POS + c] = jpos[c, 0]
-            rec[s, R_COM_VEL + c] = jvel[c, 0]
-            rec[s, R_COM_DPOS + c] = djpos[c, 0]
-            rec[s, R_COM_DVEL + c] = djvel[c, 0]
+        _put_com(rec, s, R_COM_POS, jpos)
+        _put_com(rec, s, R_COM_VEL, jvel)
+        _put_com(rec, s, R_COM_DPOS, djpos)
+        _put_com(rec, s, R_COM_DVEL, djvel)
         status, _ = kepler_step_tangent(jpos, jvel, djpos, djvel, mu, half)
         if status != KEPLER_OK:
             rec[s, R_STATUS] = KEPLER_FAILED
             return s + 1, True
-        for c in range(3):
-            rec[s, R_HALF_COM + c] = jpos[c, 0]
-            rec[s, R_HALF_DCOM + c] = djpos[c, 0]
+        _put_com(rec, s, R_HALF_COM, jpos)
+        _put_com(rec, s, R_HALF_DCOM, djpos)
         interaction_kick_tangent(jpos, jvel, djpos, djvel, m, G, eps2, dt, weights, mu, ipos, acc, dipos, dacc, force)
         _put(rec, s, V_KICK_POS, q, ipos)
         _put(rec, s, V_KICK_DPOS, q, dipos)
@@ -146,11 +171,10 @@ def massive_block(pos, vel, dpos, dvel, m, force, dt, weights, mu, scratch, esca
         if status != KEPLER_OK:
             rec[s, R_STATUS] = KEPLER_FAILED
             return s + 1, True
-        for c in range(3):
-            rec[s, R_END_COM + c] = jpos[c, 0]
-            rec[s, R_END_VCOM + c] = jvel[c, 0]
-            rec[s, R_END_DCOM + c] = djpos[c, 0]
-            rec[s, R_END_DVCOM + c] = djvel[c, 0]
+        _put_com(rec, s, R_END_COM, jpos)
+        _put_com(rec, s, R_END_VCOM, jvel)
+        _put_com(rec, s, R_END_DCOM, djpos)
+        _put_com(rec, s, R_END_DVCOM, djvel)
         jacobi_to_inertial(jpos, weights, pos)
         jacobi_to_inertial(jvel, weights, vel)
         jacobi_to_inertial(djpos, weights, dpos)
@@ -161,30 +185,11 @@ def massive_block(pos, vel, dpos, dvel, m, force, dt, weights, mu, scratch, esca
         _put(rec, s, V_DPOS, q, dpos)
         _put(rec, s, V_DVEL, q, dvel)
         _put(rec, s, V_DACC, q, dacc)
-        norm2 = 0.0
-        for c in range(3):
-            for i in range(q):
-                norm2 += dpos[c, i] * dpos[c, i] + dvel[c, i] * dvel[c, i]
+        norm2 = tangent_norm2(dpos, dvel)
         if not norm2 < SHARED_NORM2_LIMIT:
             return s + 1, False
         rec[s, R_NORM2_M] = norm2
-        deltad = 0.0
-        delta2 = 0.0
-        for i in range(q):  # deltad_delta's first q bodies, in its order
-            deltad += dvel[0, i] * dpos[0, i]
-            deltad += dvel[1, i] * dpos[1, i]
-            deltad += dvel[2, i] * dpos[2, i]
-            deltad += dacc[0, i] * dvel[0, i]
-            deltad += dacc[1, i] * dvel[1, i]
-            deltad += dacc[2, i] * dvel[2, i]
-            delta2 += dpos[0, i] * dpos[0, i]
-            delta2 += dpos[1, i] * dpos[1, i]
-            delta2 += dpos[2, i] * dpos[2, i]
-            delta2 += dvel[0, i] * dvel[0, i]
-            delta2 += dvel[1, i] * dvel[1, i]
-            delta2 += dvel[2, i] * dvel[2, i]
-        rec[s, R_DELTAD_M] = deltad
-        rec[s, R_DELTA2_M] = delta2
+        rec[s, R_DELTAD_M], rec[s, R_DELTA2_M] = deltad_delta_sums(dpos, dvel, dacc, 0.0, 0.0)
         status = _stop_reason(pos, radii, escape_r2, check_collisions)
         rec[s, R_STATUS] = status
         if status != COMPLETE:
@@ -256,10 +261,10 @@ def _test_stop(rec, s, q, t, radius, radii, escape_r2, check_collisions):
 
 
 @jit_inline
-def pixel_block(tp, tv, tdp, tdv, jp, jv, djp, djv, q, m, G, eps2, dt, mu_t, mu_one, rec, n_rec, step0, t_start,
-                halvings, megno, a0, max_e, delta_a, radius, radii, escape_r2, check_collisions):
+def pixel_block(tp, tv, tdp, tdv, jp, jv, djp, djv, whole, q, m, G, eps2, dt, mu_t, mu_one, rec, n_rec, step0,
+                t_start, halvings, megno, a0, max_e, delta_a, radius, radii, escape_r2, check_collisions):
     """Steps ``step0 .. step0 + n_rec - 1`` of one pixel's test body (state ``tp``, ``tv``, tangent ``tdp``,
-    ``tdv``, inertial, each (3, 1); ``jp``.. (3, 1) scratch) against the record. Returns
+    ``tdv``, inertial, each (3, 1); ``jp``.. (3, 1) and ``whole`` (3, 3, N) scratch) against the record. Returns
     ``(steps done in the block, status, halvings, megno, max_e, delta_a)``; a status other than
     COMPLETE stops the pixel at that step; :data:`KEPLER_FAILED`: a Kepler drift failed, and the state
     is left as it was before the step. ``mu_one`` (1,) holds ``mu_t`` for track_orbit."""
@@ -337,66 +342,31 @@ def pixel_block(tp, tv, tdp, tdv, jp, jv, djp, djv, q, m, G, eps2, dt, mu_t, mu_
         t = t_start + (step0 + s + 1) * dt
         dax, day, daz = _tangent_row(tp[0, 0], tp[1, 0], tp[2, 0], tdp[0, 0], tdp[1, 0], tdp[2, 0], rec, s, V_POS,
                                      V_DPOS, q, m, G, eps2, scale)
+        # the whole tangent state in ``whole`` (dpos, dvel, dacc rows; the test body in column q, the
+        # massive bodies, scaled, in columns 0..q-1 only where they are read)
+        for c in range(3):
+            whole[0, c, q] = tdp[c, 0]
+            whole[1, c, q] = tdv[c, 0]
+        whole[2, 0, q], whole[2, 1, q], whole[2, 2, q] = dax, day, daz
         if halvings == 0:  # scale 1: the massive part is the record's, the same bits
-            deltad = rec[s, R_DELTAD_M]
-            delta2 = rec[s, R_DELTA2_M]
+            deltad, delta2 = rec[s, R_DELTAD_M], rec[s, R_DELTA2_M]
         else:
-            deltad = 0.0
-            delta2 = 0.0
-            for i in range(q):
-                ex, ey, ez = (scale * _get(rec, s, V_DPOS, q, 0, i), scale * _get(rec, s, V_DPOS, q, 1, i),
-                              scale * _get(rec, s, V_DPOS, q, 2, i))
-                fx, fy, fz = (scale * _get(rec, s, V_DVEL, q, 0, i), scale * _get(rec, s, V_DVEL, q, 1, i),
-                              scale * _get(rec, s, V_DVEL, q, 2, i))
-                gx, gy, gz = (scale * _get(rec, s, V_DACC, q, 0, i), scale * _get(rec, s, V_DACC, q, 1, i),
-                              scale * _get(rec, s, V_DACC, q, 2, i))
-                deltad += fx * ex
-                deltad += fy * ey
-                deltad += fz * ez
-                deltad += gx * fx
-                deltad += gy * fy
-                deltad += gz * fz
-                delta2 += ex * ex
-                delta2 += ey * ey
-                delta2 += ez * ez
-                delta2 += fx * fx
-                delta2 += fy * fy
-                delta2 += fz * fz
-        deltad += tdv[0, 0] * tdp[0, 0]
-        deltad += tdv[1, 0] * tdp[1, 0]
-        deltad += tdv[2, 0] * tdp[2, 0]
-        deltad += dax * tdv[0, 0]
-        deltad += day * tdv[1, 0]
-        deltad += daz * tdv[2, 0]
-        delta2 += tdp[0, 0] * tdp[0, 0]
-        delta2 += tdp[1, 0] * tdp[1, 0]
-        delta2 += tdp[2, 0] * tdp[2, 0]
-        delta2 += tdv[0, 0] * tdv[0, 0]
-        delta2 += tdv[1, 0] * tdv[1, 0]
-        delta2 += tdv[2, 0] * tdv[2, 0]
+            _scaled_massive(rec, s, q, scale, whole)
+            deltad, delta2 = deltad_delta_sums(whole[0, :, :q], whole[1, :, :q], whole[2, :, :q], 0.0, 0.0)
+        deltad, delta2 = deltad_delta_sums(whole[0, :, q:], whole[1, :, q:], whole[2, :, q:], deltad, delta2)
         dY = dt * 2.0 * (t - megno.initial_t) * (deltad / delta2)
         megno = megno_update(megno, t, dY, dt)
-        test2 = 0.0
-        for c in range(3):
-            test2 += tdp[c, 0] * tdp[c, 0] + tdv[c, 0] * tdv[c, 0]
         # |delta|^2 in another order is within 1e-14 of rescale_power_of_two's sum: only a vector near the
         # bar needs that exact sum (a nan skips both, as it skips the exact test)
-        near_bar = rec[s, R_NORM2_M] * (scale * scale) + test2 > RESCALE_ABOVE * (1.0 - 1e-9)
-        while near_bar:  # rescale_power_of_two over the whole vector, components outermost
-            scale = 2.0 ** (-200 * halvings)
-            norm2 = 0.0
-            for c in range(3):
-                for i in range(q):
-                    e = scale * _get(rec, s, V_DPOS, q, c, i)
-                    f = scale * _get(rec, s, V_DVEL, q, c, i)
-                    norm2 += e * e + f * f
-                norm2 += tdp[c, 0] * tdp[c, 0] + tdv[c, 0] * tdv[c, 0]
-            if not norm2 > RESCALE_ABOVE:
-                break
-            for c in range(3):
-                tdp[c, 0] *= 2.0 ** -200
-                tdv[c, 0] *= 2.0 ** -200
-            halvings += 1
+        if rec[s, R_NORM2_M] * (scale * scale) + tangent_norm2(tdp, tdv) > RESCALE_ABOVE * (1.0 - 1e-9):
+            _scaled_massive(rec, s, q, scale, whole)
+            count = rescale_power_of_two(whole[0], whole[1])  # the whole vector, as the whole-system step
+            if count > 0:
+                for c in range(3):
+                    tdp[c, 0] = whole[0, c, q]
+                    tdv[c, 0] = whole[1, c, q]
+                halvings += count
+                scale = 2.0 ** (-200 * halvings)
         # track_orbit reads the test body's Jacobi state at the end of the step
         max_e, delta_a = track_orbit(jp, jv, mu_one, 0, a0, max_e, delta_a)
         status = _test_stop(rec, s, q, tp, radius, radii, escape_r2, check_collisions)
@@ -465,6 +435,7 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
     radius = radii[0, q]
     rec = np.zeros((BLOCK_STEPS, record_columns(q)))
     state = np.zeros((n_sys, 8, 3, 1))  # tp, tv, tdp, tdv, then the Jacobi scratch jp, jv, djp, djv
+    whole = np.zeros((n_sys, 3, 3, n))  # each pixel's whole tangent state, for MEGNO's sums and the rescaling
     sums = np.zeros((n_sys, 7))  # MegnoState's float fields
     counts = np.zeros((n_sys, 2), dtype=np.int64)  # MegnoState.n, halvings
     track = np.zeros((n_sys, 4))  # e0, a0, max_e, delta_a
@@ -500,7 +471,8 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
             megno = MegnoState(sums[k, 0], sums[k, 1], sums[k, 2], sums[k, 3], sums[k, 4], sums[k, 5], sums[k, 6],
                                counts[k, 0])
             n_done, code, halvings, megno, max_e, delta_a = pixel_block(
-                st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], q, m[k], G, eps2, dt, mu_t, mu_one, rec,
+                st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], whole[k], q, m[k], G, eps2, dt, mu_t, mu_one,
+                rec,
                 recorded, done, t_start, counts[k, 1], megno, track[k, 1], track[k, 2], track[k, 3], radius, radii[k],
                 escape_r2, check_collisions)
             sums[k, 0], sums[k, 1], sums[k, 2], sums[k, 3] = megno.ys, megno.yss, megno.cov_yt, megno.var_t
