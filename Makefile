@@ -11,7 +11,7 @@ install: $(STAMP)
 $(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,gpu]'
 	# REBOUNDx (the forces' cross-checks) builds from source against the installed REBOUND.
 	$(BIN)/python -m pip install --quiet wheel setuptools
 	$(BIN)/python -m pip install --quiet --no-build-isolation 'reboundx==5.1.0'
