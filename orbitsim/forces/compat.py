@@ -47,7 +47,7 @@ FORCE_INTEGRATORS: dict[str, tuple[str, ...]] = {
 TANGENT_BUILT = ("gr_potential", "harmonics")
 #: Schemes whose variational kernel passes the run's forces to the bodies' kicks and to the tangent
 #: kicks (:func:`orbitsim.forces.tangent.add_tangent_kick_forces`).
-CHAOS_FORCE_SCHEMES = ("verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8", "wisdom_holman")
+CHAOS_FORCE_SCHEMES = ("verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8", "wisdom_holman", "ias15")
 
 _WHY_NOT = {
     "trace": "trace switches between Wisdom-Holman and Bulirsch-Stoer, and splitting a force between them is not "

@@ -185,9 +185,12 @@ def _fd_check(name: str) -> None:
     forces = make_forces(3, STRONG)
     d = np.concatenate(random_initial_variation(3, 11)).T  # (N, 6)
     eps, dt, steps = 1e-6, P / 50, 200
+    # IAS15 at fixed steps: adaptive runs 1e-6 apart would choose steps that differ by round-off
+    settings = {"adaptive": False} if name == "ias15" else None
     ends = [chaos_run(m, x + s * eps * d[:, :3], v + s * eps * d[:, 3:], integrator=name, dt=dt, steps=steps,
-                      every=steps, forces=forces) for s in (1.0, -1.0)]
-    tangent = chaos_run(m, x, v, integrator=name, dt=dt, steps=steps, every=steps, variation=d, forces=forces)
+                      every=steps, forces=forces, settings=settings) for s in (1.0, -1.0)]
+    tangent = chaos_run(m, x, v, integrator=name, dt=dt, steps=steps, every=steps, variation=d, forces=forces,
+                        settings=settings)
     assert tangent.finite
     fd = np.concatenate([ends[0].positions - ends[1].positions, ends[0].velocities - ends[1].velocities]) / (2 * eps)
     ours = np.concatenate([tangent.dpos, tangent.dvel])
@@ -195,7 +198,7 @@ def _fd_check(name: str) -> None:
     # of the state over 200 steps (measured 2e-8 to 4e-8 relative); leaving the forces' derivative out
     # costs 3e3 (test above), so 1e-6 separates the two by nine orders of magnitude
     assert np.abs(fd - ours).max() < 1e-6 * np.abs(ours).max()
-    plain = chaos_run(m, x, v, integrator=name, dt=dt, steps=steps, every=steps, variation=d)
+    plain = chaos_run(m, x, v, integrator=name, dt=dt, steps=steps, every=steps, variation=d, settings=settings)
     assert not np.array_equal(plain.positions, tangent.positions)  # the forces acted on the bodies
 
 
@@ -204,8 +207,13 @@ def test_wisdom_holman_variational_run_with_forces_is_the_derivative_of_two_near
     _fd_check("wisdom_holman")
 
 
+def test_ias15_variational_run_with_forces_is_the_derivative_of_two_nearby_runs() -> None:
+    # IAS15 adds the forces at every node and their derivatives to the tangent's node accelerations.
+    _fd_check("ias15")
+
+
 @pytest.mark.slow  # each scheme compiles its own forced variational loop (~1-3 minutes on 2 cores)
-@pytest.mark.parametrize("name", [s for s in CHAOS_FORCE_SCHEMES if s != "wisdom_holman"])
+@pytest.mark.parametrize("name", [s for s in CHAOS_FORCE_SCHEMES if s not in ("wisdom_holman", "ias15")])
 def test_every_scheme_variational_run_with_forces_is_the_derivative_of_two_nearby_runs(name: str) -> None:
     _fd_check(name)
 
@@ -247,11 +255,17 @@ def test_chaos_run_refuses_a_force_without_a_derivative_before_anything_runs(fid
         chaos_run(m, x, v, integrator="wisdom_holman", dt=P / 40, steps=10, forces=forces)
 
 
+def test_every_scheme_with_variational_equations_takes_forces() -> None:
+    assert set(CHAOS_FORCE_SCHEMES) == set(chaos_schemes())
+
+
 def test_a_scheme_whose_variational_kernel_takes_no_forces_is_refused_in_one_line() -> None:
-    # ias15's variational kernel (orbitsim/integrators/ias15/tangent.py) evaluates gravity only.
-    why = check_chaos_forces(("harmonics",), "ias15")
-    assert why is not None and "\n" not in why and "force harmonics" in why and "ias15" in why
-    assert check_chaos_forces((), "ias15") is None
+    # Every scheme with variational equations takes forces today (test above); the refusal stands for one
+    # added without them, and says so for any name outside the list (rk4 has no variational equations).
+    why = check_chaos_forces(("harmonics",), "rk4")
+    assert why is not None and "\n" not in why and "force harmonics" in why and "rk4" in why
+    assert all(name in why for name in CHAOS_FORCE_SCHEMES)
+    assert check_chaos_forces((), "rk4") is None
     # a scheme with no variational equations at all is refused for that first
     assert "no variational equations" in chaos_refusal("rk4", None, ("gr_potential",))
 
