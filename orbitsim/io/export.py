@@ -269,7 +269,17 @@ def export_scenario(trace: str | os.PathLike[str], output: str | os.PathLike[str
     following, note = _with_integrator_state(following, scenario, where, state)
     text = following.to_yaml()
     write_atomically(output, lambda f: f.write(text))
+    if scenario.chaos is not None:
+        note = "; ".join(filter(None, (note, _chaos_restarts(state, where))))
     return ExportNotes(note, departure_note(state, where))
+
+
+def _chaos_restarts(state: SampleState, where: str) -> str:
+    """A scenario holds the bodies, not the variational state: its ``output.chaos`` starts the indicators
+    again at the sample (REBOUND's MEGNO after a restart from an archive, its #839, does so silently)."""
+    return (f"the run's chaos indicators (output.chaos) start again in the exported scenario: a run of it draws its "
+            f"tangent vector afresh and starts MEGNO's sums from zero at t = {state.time!r}, so its MEGNO and mLCE "
+            f"are not the trace's; `orbitsim run --from {where} --steps N` continues them bit for bit")
 
 
 def _continuation(scenario: Any, changes: dict[str, Any], state: SampleState, where: str) -> Any:

@@ -131,6 +131,26 @@ def test_csv_includes_megno_and_mlce_of_a_chaos_run(tmp_path: Path) -> None:
     assert "megno" not in (tmp_path / "plain.csv").read_text().splitlines()[0]  # only where the run recorded it
 
 
+def test_exporting_a_chaos_run_as_a_scenario_says_the_indicators_start_again(tmp_path: Path) -> None:
+    doc = {"name": "ch", "integrator": "leapfrog", "dt": 0.01, "steps": 40,
+           "output": {"every": 10, "positions": True, "chaos": {"seed": 1}}, "bodies": THREE_BODIES}
+    run_scenario(scenario_from_dict(doc), tmp_path / "ch.h5")
+    result = export(str(tmp_path / "ch.h5"), "--format", "scenario", "--sample", "2", "-o", str(tmp_path / "next.yaml"))
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.output.splitlines() if "chaos indicators" in line]
+    assert len(lines) == 1 and "start again" in lines[0] and "t = 0.2" in lines[0]
+    assert f"orbitsim run --from {tmp_path / 'ch.h5'}" in lines[0]
+    # the exported scenario does start them again: its first sample is MEGNO's start, not the trace's value there
+    run_scenario(load_scenario(tmp_path / "next.yaml"), tmp_path / "next.h5")
+    with h5py.File(tmp_path / "ch.h5") as f, h5py.File(tmp_path / "next.h5") as g:
+        assert g["megno"][0] == 0.0 != f["megno"][2]
+        assert np.array_equal(g["positions"][0], f["positions"][2])  # the bodies do continue from the sample
+    plain = {**doc, "name": "plain", "output": {"every": 10, "positions": True}}
+    run_scenario(scenario_from_dict(plain), tmp_path / "plain.h5")
+    result = export(str(tmp_path / "plain.h5"), "--format", "scenario", "-o", str(tmp_path / "p.yaml"))
+    assert result.exit_code == 0 and "chaos" not in result.output  # only a chaos run's export says it
+
+
 def test_state_exports_need_positions(tmp_path: Path) -> None:
     doc = {"name": "blind", "integrator": "leapfrog", "dt": 0.01, "steps": 5,
            "output": {"every": 1, "positions": False}, "bodies": THREE_BODIES}
