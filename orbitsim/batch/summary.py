@@ -13,6 +13,10 @@ Columns, in order (``params`` are the sweep's dotted key paths, one column each)
 ``max_abs_energy_error``  float  max over samples of abs(energy_error), the trace's
                                  (E + energy_offset - E0) / energy_scale
 ``final_energy_error``    float  the trace's energy_error at the last sample
+``megno``                 float  MEGNO <Y> at the last sample, for a run with ``output.chaos``
+                                 (empty otherwise)
+``mlce``                  float  the mLCE (Lyapunov exponent) at the last sample, likewise; its
+                                 inverse, where positive, is the Lyapunov time
 ``wall_time_s``           float  wall-clock seconds of the run, as recorded in its trace
 ``steps_per_second``      float  ``steps_done / wall_time_s``
 ``encounters``            count  close encounters in the trace's ``events`` table (0 for a run
@@ -56,6 +60,8 @@ RESULT_COLUMNS: tuple[tuple[str, type], ...] = (
     ("steps_done", int),
     ("max_abs_energy_error", float),
     ("final_energy_error", float),
+    ("megno", float),
+    ("mlce", float),
     ("wall_time_s", float),
     ("steps_per_second", float),
     ("encounters", Count),
@@ -222,10 +228,13 @@ def events_cell(row: Mapping[str, Any]) -> str:
 def format_table(rows: Sequence[Mapping[str, Any]], params: Sequence[str], max_rows: int = 40) -> str:
     """A fixed-width text table of the summary (the first ``max_rows`` rows) for the terminal.
 
-    The ``events logged`` column (before ``error``) is there only when a run logged an event: a sweep
-    without ``events:`` gets the table it always got.
+    The ``events logged`` column (before ``error``) is there only when a run logged an event, and the
+    ``MEGNO`` and ``mLCE`` columns only when a run recorded them (``output.chaos``): a sweep without
+    either gets the table it always got.
     """
     table = list(_TABLE)
+    if any(isinstance(row.get("megno"), float) and not math.isnan(row["megno"]) for row in rows):
+        table[3:3] = [("MEGNO", "megno", 8), ("mLCE", "mlce", 9)]  # after the energy errors, for chaos runs only
     if any(events_cell(row) for row in rows):
         # Not plain "events": a sweep of the scenario key `events` has a parameter column of that name.
         table.insert(len(table) - 1, ("events logged", "", _EVENTS_WIDTH))

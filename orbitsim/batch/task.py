@@ -70,6 +70,8 @@ def failed_result(err: BaseException | str, worker: str = "") -> dict[str, Any]:
         "steps_done": 0,
         "max_abs_energy_error": math.nan,
         "final_energy_error": math.nan,
+        "megno": math.nan,
+        "mlce": math.nan,
         "wall_time_s": math.nan,
         "steps_per_second": math.nan,
         **{column: None for column, _ in EVENT_COLUMNS},
@@ -86,14 +88,20 @@ def _event_counts(f: Any) -> dict[str, int]:
     return {column: int(counts.get(kind, 0)) for column, kind in EVENT_COLUMNS}
 
 
+def _last(dataset: Any) -> float:
+    """The last sample of a (S,) series, NaN for an empty one (a run stopped before its first sample)."""
+    return float(dataset[-1]) if dataset.shape[0] else math.nan
+
+
 def trace_result(path: str | os.PathLike, *, require_sha256: str | None = None) -> dict[str, Any] | None:
-    """Summary numbers of a finished trace: status, steps, energy errors, wall time, steps/s and
-    the counts of events by kind.
+    """Summary numbers of a finished trace: status, steps, energy errors, MEGNO and the mLCE at the last
+    sample (a run with ``output.chaos``), wall time, steps/s and the counts of events by kind.
 
     With ``require_sha256`` (the resume check) the answer is None unless the trace is complete and
     was made from the scenario with that hash.
 
-    One open of the file, reading the root attributes, ``energy_error`` and ``events/kind`` only:
+    One open of the file, reading the root attributes, ``energy_error``, the last ``megno`` and ``mlce``
+    and ``events/kind`` only:
     this runs once per run and per resumed run, and :func:`orbitsim.io.trace.open_trace_summary`
     (which also walks every dataset) would double the cost of a small run's bookkeeping.
 
@@ -118,6 +126,7 @@ def trace_result(path: str | os.PathLike, *, require_sha256: str | None = None) 
                 return None
             energy_error = f["energy_error"][()]
             events = _event_counts(f)
+            chaos = {name: _last(f[name]) if name in f else math.nan for name in ("megno", "mlce")}
     except (OSError, KeyError) as err:
         raise TraceError(f"{os.fspath(path)}: unreadable trace ({err})") from None
     steps = int(attrs["steps_done"] or 0)
@@ -128,6 +137,7 @@ def trace_result(path: str | os.PathLike, *, require_sha256: str | None = None) 
         "steps_done": steps,
         "max_abs_energy_error": float(np.max(np.abs(energy_error))) if energy_error.size else math.nan,
         "final_energy_error": float(energy_error[-1]) if energy_error.size else math.nan,
+        **chaos,
         "wall_time_s": wall,
         "steps_per_second": steps / wall if wall > 0.0 else math.nan,
         **events,
