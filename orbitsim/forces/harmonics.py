@@ -52,6 +52,22 @@ def spin_basis(sx, sy, sz):
 
 
 @jit_inline
+def add_with_reaction(out, j, src, fac, au, av, aw, ux, uy, uz, vx, vy, vz, wx, wy, wz):
+    """out[:, j] += the body-frame vector (au, av, aw) back in the inertial frame (the transpose of the
+    (u, v, w) rotation), and out[:, src] -= ``fac`` times it: the oblate body's reaction, ``fac`` = m_j / M.
+    One place for :func:`harmonics_accelerations` and :func:`harmonics_tangent` (the same operations)."""
+    ax = ux * au + vx * av + wx * aw
+    ay = uy * au + vy * av + wy * aw
+    az = uz * au + vz * av + wz * aw
+    out[0, j] += ax
+    out[1, j] += ay
+    out[2, j] += az
+    out[0, src] -= fac * ax
+    out[1, src] -= fac * ay
+    out[2, src] -= fac * az
+
+
+@jit_inline
 def harmonics_accelerations(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, acc):
     """acc (3, N) += the J2/J4 accelerations of every body about body ``src``, and its reaction."""
     ux, uy, uz, vx, vy, vz, wx, wy, wz = spin_basis(sx, sy, sz)
@@ -87,17 +103,7 @@ def harmonics_accelerations(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, acc):
             au += f1 * f2 * du
             av += f1 * f2 * dv
             aw += f1 * f3 * dw
-        # Back to the inertial frame: the transpose of the (u, v, w) rotation.
-        ax = ux * au + vx * av + wx * aw
-        ay = uy * au + vy * av + wy * aw
-        az = uz * au + vz * av + wz * aw
-        acc[0, j] += ax
-        acc[1, j] += ay
-        acc[2, j] += az
-        fac = m[j] / ms
-        acc[0, src] -= fac * ax
-        acc[1, src] -= fac * ay
-        acc[2, src] -= fac * az
+        add_with_reaction(acc, j, src, m[j] / ms, au, av, aw, ux, uy, uz, vx, vy, vz, wx, wy, wz)
 
 
 @jit_inline
@@ -159,16 +165,7 @@ def harmonics_tangent(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, dpos, dacc):
         dau = dF * du + F * ddu
         dav = dF * dv + F * ddv
         daw = dH * dw + H * ddw
-        ax = ux * dau + vx * dav + wx * daw
-        ay = uy * dau + vy * dav + wy * daw
-        az = uz * dau + vz * dav + wz * daw
-        dacc[0, j] += ax
-        dacc[1, j] += ay
-        dacc[2, j] += az
-        fac = m[j] / ms
-        dacc[0, src] -= fac * ax
-        dacc[1, src] -= fac * ay
-        dacc[2, src] -= fac * az
+        add_with_reaction(dacc, j, src, m[j] / ms, dau, dav, daw, ux, uy, uz, vx, vy, vz, wx, wy, wz)
 
 
 @jit
