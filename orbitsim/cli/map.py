@@ -164,6 +164,8 @@ def _hint_shared_massive(plan: MapPlan) -> None:
     the massive bodies once for all pixels (orbitsim/ensemble/restricted.py)."""
     from orbitsim.stability.plan import pixel_state
 
+    if plan.integrator != "wisdom_holman":
+        return  # the shared massive bodies are the Wisdom-Holman ensemble's shortcut only
     masses = pixel_state(plan, 0)[0]
     body = plan.axes[0].index
     if len(masses) >= 3 and masses[body] == 0.0 and body != len(masses) - 1 and \
