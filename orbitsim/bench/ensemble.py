@@ -9,6 +9,9 @@ Side by side on this machine (issue 29's throughput target):
 * **ensemble**: ns per system-step of K = 4096 four-body systems (Sun, Jupiter, Saturn, Uranus) in the
   ensemble kernel, beside one system stepped by orbitsim's single-system Wisdom-Holman
   (``Simulation.chunks``) and by REBOUND's WHFast (``sim.steps``).
+* **variational**: pixel-steps per second of the same K systems with their variational equations (what a
+  map runs), the Wisdom-Holman ensemble beside the kick-drift ones (leapfrog, leapfrog4, verlet;
+  :mod:`orbitsim.ensemble.kick_drift`), in one process, alternating rounds (the best of each kept).
 
 ``orbitsim bench full --group ensemble`` runs it (:func:`run_ensemble_probe`); ``benchmarks/map_speed.py``
 runs it alone and draws REBOUND's MEGNO map beside orbitsim's map.
@@ -113,6 +116,35 @@ def ensemble_step_ns(k: int, steps: int) -> dict[str, float]:
     return {"ensemble": ensemble, "single": single, "rebound": reb}
 
 
+#: The schemes whose variational ensembles :func:`variational_pixel_steps` times side by side.
+VARIATIONAL_SCHEMES = ("wisdom_holman", "leapfrog", "leapfrog4", "verlet")
+
+
+def variational_pixel_steps(k: int, steps: int, rounds: int = 2) -> dict[str, float]:
+    """Pixel-steps per second (system-steps with the variational equations and MEGNO) of K four-body
+    systems for each of :data:`VARIATIONAL_SCHEMES`, run in turn ``rounds`` times in this process; the
+    best round of each. The systems are those of :func:`ensemble_step_ns`; every one has four massive
+    bodies, so the Wisdom-Holman ensemble runs its whole-system kernel, as the kick-drift ones do."""
+    from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: beside its use
+
+    sc = load_scenario("giants")
+    m, x, v = sc.masses[:4], sc.positions[:4].T, sc.velocities[:4].T
+    masses, pos, vel = np.tile(m, (k, 1)), np.tile(x, (k, 1, 1)), np.tile(v, (k, 1, 1))
+    pos[:, 0, 3] *= 1.0 + 1e-3 * np.arange(k) / k
+    dpos, dvel = random_initial_variation(4, 0)
+    variation = (np.tile(dpos, (k, 1, 1)), np.tile(dvel, (k, 1, 1)))
+    for name in VARIATIONAL_SCHEMES:  # compile / load
+        run_ensemble(masses[:2], pos[:2], vel[:2], G=1.0, dt=0.5, n_steps=2, integrator=name,
+                     variation=(variation[0][:2], variation[1][:2]))
+    best = dict.fromkeys(VARIATIONAL_SCHEMES, 0.0)
+    for _ in range(rounds):
+        for name in VARIATIONAL_SCHEMES:
+            started = time.perf_counter()
+            run_ensemble(masses, pos, vel, G=1.0, dt=0.5, n_steps=steps, integrator=name, variation=variation)
+            best[name] = max(best[name], k * steps / (time.perf_counter() - started))
+    return best
+
+
 def run_ensemble_probe(group: Any) -> dict[str, Any]:
     """The ``ensemble`` group of a benchmark matrix: the map race and the per-system-step times."""
     p = group.params
@@ -125,8 +157,10 @@ def run_ensemble_probe(group: Any) -> dict[str, Any]:
         large_s, large_kernel_s = (orbitsim_map(large, p["years"], out / "large", p["indicator"], warm=False) if large
                                   else (0.0, 0.0))
     ns = ensemble_step_ns(p["k"], p["steps"])
+    variational = variational_pixel_steps(p["k"], p["steps"])
     return {"map_n": p["map_n"], "years": p["years"], "indicator": p["indicator"], "rebound_map_s": rebound_s,
             "orbitsim_map_s": orbitsim_s, "orbitsim_kernel_s": kernel_s, "k": p["k"], "steps": p["steps"],
             "ensemble_ns": ns["ensemble"], "single_ns": ns["single"], "rebound_ns": ns["rebound"],
             "large_map_n": large, "large_map_s": large_s, "large_kernel_s": large_kernel_s,
-            "large_rebound_estimate_s": rebound_s * (large / p["map_n"]) ** 2}
+            "large_rebound_estimate_s": rebound_s * (large / p["map_n"]) ** 2,
+            "variational_pixel_steps_per_s": variational}

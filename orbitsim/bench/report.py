@@ -152,7 +152,12 @@ def _probes(doc: dict[str, Any]) -> list[str]:
                            f"target <= 60 s); REBOUND's estimate (its {p['map_n']} x {p['map_n']} time per pixel) "
                            f"{_time(p['large_rebound_estimate_s'])}")
             out.append(f"- ns per system-step, 4 bodies: ensemble of K = {p['k']} {p['ensemble_ns']:.0f}, one system "
-                       f"(wisdom_holman, 1 thread) {p['single_ns']:.0f}, REBOUND WHFast {p['rebound_ns']:.0f}\n")
+                       f"(wisdom_holman, 1 thread) {p['single_ns']:.0f}, REBOUND WHFast {p['rebound_ns']:.0f}")
+            rates = p.get("variational_pixel_steps_per_s", {})
+            if rates:
+                out.append(f"- pixel-steps/s with the variational equations and MEGNO, K = {p['k']} 4-body systems, "
+                           "one run: " + ", ".join(f"{name} {rate:.3g}" for name, rate in rates.items()))
+            out.append("")
         elif p["kind"] == "sampling":
             out.append(f"{p['integrator']}, N = {p['n']}, {p['steps']} steps: every {p['every']} steps "
                        f"({p['samples']} samples) {_spread(p['with_samples'])}; first and last only "

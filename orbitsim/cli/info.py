@@ -269,7 +269,8 @@ def _map_info(path: str) -> None:
 
     data = read_map(path)
     click.echo(f"{path}: stability map of {data.get('scenario_name')} ({data['pixels']} pixels), "
-               f"t = {data['t_start']:g} .. {data['t_end']:g}, dt = {data['dt']:g}, {data['steps']} steps")
+               f"t = {data['t_start']:g} .. {data['t_end']:g}, {data.get('integrator', 'wisdom_holman')} "
+               f"dt = {data['dt']:g}, {data['steps']} steps")  # maps written before the attribute were all WH
     for name in ("x", "y"):
         if name in data:
             axis = data[name]

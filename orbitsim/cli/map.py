@@ -36,7 +36,8 @@ INDICATOR_CHOICES = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_
 @click.option("--indicator", type=click.Choice(INDICATOR_CHOICES), default="megno", show_default=True,
               help="The indicator map.png shows; map.h5 holds them all (orbitsim plot map.h5 --indicator NAME).")
 @click.option("--max-energy-error", type=float, default=1e-6, show_default=True,
-              help="Pixels whose |dE/E| at the end exceeds this are marked unreliable (hatched in map.png).")
+              help="Pixels whose |dE/E| at the end exceeds this are marked unreliable (hatched in map.png). One "
+                   "default for every scheme a map runs: all are symplectic.")
 @click.option("--escape-distance", type=float, default=None,
               help="A body farther than this from body 0 has escaped (default: 10 times the largest start "
                    "distance from body 0 over the map).")
@@ -58,11 +59,13 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
             scheduler: str | None, resume: bool, force: bool, quiet: bool, threads: int | None) -> None:
     """Map SCENARIO's stability over one or two parameters: map.h5 (every indicator) and map.png.
 
-    Each pixel runs SCENARIO with the axes' values from its start to --t-end with the Wisdom-Holman
-    map and its tangent map (variational equations, as REBOUND's WHFast), as one system of an
-    ensemble (orbitsim.ensemble); a pixel stops alone when a body escapes, two bodies with radii
-    collide, or its state diverges. Indicators, all from one pass: megno, lyapunov_time,
-    survival_time, max_e and delta_a (of the --x body's Jacobi orbit), energy_error.
+    Each pixel runs SCENARIO with the axes' values from its start to --t-end with the scenario's
+    integrator and its variational equations, as one system of an ensemble (orbitsim.ensemble):
+    wisdom_holman (Jacobi coordinates, no corrector; the tangent map as REBOUND's WHFast), verlet,
+    or leapfrog of any order (for close encounters or no dominant body). A pixel stops alone when a
+    body escapes, two bodies with radii collide, or its state diverges. Indicators, all from one
+    pass: megno, lyapunov_time, survival_time, max_e and delta_a (of the --x body's Jacobi orbit),
+    energy_error.
 
     Finished chunks are kept in DIR/map.parts as they finish: a killed map loses none, and the
     same command (or --resume) runs only the rest, with bit-identical pixels.
@@ -161,6 +164,8 @@ def _hint_shared_massive(plan: MapPlan) -> None:
     the massive bodies once for all pixels (orbitsim/ensemble/restricted.py)."""
     from orbitsim.stability.plan import pixel_state
 
+    if plan.integrator != "wisdom_holman":
+        return  # the shared massive bodies are the Wisdom-Holman ensemble's shortcut only
     masses = pixel_state(plan, 0)[0]
     body = plan.axes[0].index
     if len(masses) >= 3 and masses[body] == 0.0 and body != len(masses) - 1 and \

@@ -1,8 +1,9 @@
 """Ensembles: K systems of the same N, scheme and dt in one jitted call (issue 29).
 
-:mod:`.status` holds the status codes and indicator columns, :mod:`.kernels` the parallel kernel
-(the Wisdom-Holman step, made of the single-system scheme's own jitted operators) and :mod:`.run`
-the front door, :func:`run_ensemble`.
+:mod:`.status` holds the status codes, indicator columns and the schemes, :mod:`.kernels` the
+parallel Wisdom-Holman kernel (made of the single-system scheme's own jitted operators),
+:mod:`.kick_drift` those of velocity Verlet and the leapfrog orders (each system the scheme's own
+variational step) and :mod:`.run` the front door, :func:`run_ensemble`.
 """
 
 from orbitsim.ensemble.run import EnsembleResult, run_ensemble

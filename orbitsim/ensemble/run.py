@@ -1,7 +1,9 @@
-"""The front door of the ensemble kernel: validate K systems, allocate their scratch, run them.
+"""The front door of the ensemble kernels: validate K systems, allocate their scratch, run them.
 
-:func:`run_ensemble` checks and coerces its input (the kernel assumes clean arrays), allocates every
-array the kernel writes once per call, and calls :func:`orbitsim.ensemble.kernels.run_ensemble_wh`.
+:func:`run_ensemble` checks and coerces its input (the kernels assume clean arrays), allocates every
+array a kernel writes once per call, and calls the scheme's kernel:
+:func:`orbitsim.ensemble.kernels.run_ensemble_wh` (or its variational twin) for ``wisdom_holman``, the
+scheme's kernel of :mod:`orbitsim.ensemble.kick_drift` for ``verlet`` and the leapfrog orders.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from orbitsim.ensemble.status import N_COLUMNS
+from orbitsim.ensemble.status import N_COLUMNS, SCHEMES
 
 __all__ = ["EnsembleResult", "run_ensemble"]
 
@@ -36,8 +38,9 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
                  n_steps: int, t_start: float = 0.0, escape_distance: float = np.inf,
                  radii: np.ndarray | None = None, watch: int = 1,
                  variation: tuple[np.ndarray, np.ndarray] | None = None,
-                 shared_massive: bool = True) -> EnsembleResult:
-    """Run K systems of N bodies with the Wisdom-Holman map (Jacobi coordinates, no corrector).
+                 shared_massive: bool = True, integrator: str = "wisdom_holman") -> EnsembleResult:
+    """Run K systems of N bodies with the Wisdom-Holman map (Jacobi coordinates, no corrector), or with
+    velocity Verlet or a leapfrog order and their variational equations (``integrator``).
 
     Parameters
     ----------
@@ -64,7 +67,12 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
         With ``variation``, where the last body is massless, watched, and the other bodies are the same
         in every system (a map over a test particle), step those once for all systems
         (:mod:`orbitsim.ensemble.restricted`: the same bits, a fraction of the time). False: always
-        the whole-system kernel (tests compare the two).
+        the whole-system kernel (tests compare the two). Wisdom-Holman only.
+    integrator : str
+        A registry name of :data:`orbitsim.ensemble.status.SCHEMES`: ``wisdom_holman`` (the default),
+        ``verlet``, ``leapfrog``, ``leapfrog4``, ``leapfrog6`` or ``leapfrog8``. The kick-drift schemes
+        (:mod:`orbitsim.ensemble.kick_drift`) always carry their variational equations: they need
+        ``variation``, and at most :data:`orbitsim.physics.gravity.SMALL_N_MAX` bodies per system.
 
     Returns
     -------
@@ -78,8 +86,12 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
     if m.ndim != 2 or m.shape[1] < 2:
         raise ValueError(f"ensemble: masses must have shape (K, N) with N >= 2, got {m.shape}")
     k, n = m.shape
+    if integrator not in SCHEMES:
+        raise ValueError(f"ensemble: no ensemble kernel for integrator {integrator!r}; schemes: {', '.join(SCHEMES)}")
     if not (m[:, 0] > 0.0).all():
-        raise ValueError("ensemble: wisdom_holman needs a central body: every system's first mass must be > 0")
+        why = ("wisdom_holman needs a central body" if integrator == "wisdom_holman" else
+               "the indicators follow Jacobi orbits about body 0 and escapes are measured from it")
+        raise ValueError(f"ensemble: {why}: every system's first mass must be > 0")
     if (m < 0.0).any() or not np.isfinite(m).all():
         raise ValueError("ensemble: masses must be finite and >= 0")
     pos = _as_systems("positions", positions, (k, 3, n))
@@ -109,6 +121,9 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
     steps = np.zeros(k, dtype=np.int64)
     out = np.zeros((k, N_COLUMNS))
     escape_r2 = float(escape_distance) ** 2
+    if integrator != "wisdom_holman":
+        return _run_kick_drift(integrator, m, pos, vel, G, dt, n_steps, t_start, escape_r2, r, check_collisions,
+                               watch, weights, mu, variation, status, steps, out)
     if variation is not None:
         from orbitsim.ensemble.kernels import run_ensemble_variational  # noqa: PLC0415 - lazy: loads numba
         from orbitsim.integrators.wisdom_holman.tangent import TANGENT_SCRATCH_ROWS  # noqa: PLC0415 - as above
@@ -140,4 +155,35 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
     run_ensemble_wh(pos, vel, m, float(G), float(dt), float(t_start), np.int64(n_steps), escape_r2, r,
                     check_collisions, np.int64(watch), *scratch, weights, mu, ks, kstage, np.zeros(0), status,
                     steps, out)
+    return EnsembleResult(status, steps, out, pos, vel)
+
+
+def _run_kick_drift(integrator: str, m: np.ndarray, pos: np.ndarray, vel: np.ndarray, G: float, dt: float,
+                    n_steps: int, t_start: float, escape_r2: float, radii: np.ndarray, check_collisions: bool,
+                    watch: int, weights: np.ndarray, mu: np.ndarray, variation: tuple[np.ndarray, np.ndarray] | None,
+                    status: np.ndarray, steps: np.ndarray, out: np.ndarray) -> EnsembleResult:
+    """:func:`run_ensemble` for a kick-drift scheme: the checks only it needs, its scratch, its kernel."""
+    from orbitsim.ensemble.kick_drift import KICK_DRIFT_KERNELS  # noqa: PLC0415 - lazy: loads numba
+    from orbitsim.integrators.base import TANGENT_SCRATCH_ROWS  # noqa: PLC0415 - lazy: as above
+    from orbitsim.physics.force_context import make_force  # noqa: PLC0415 - lazy: as above
+    from orbitsim.physics.gravity import SMALL_N_MAX  # noqa: PLC0415 - lazy: as above
+
+    k, n = m.shape
+    if variation is None:
+        raise ValueError(f"ensemble: {integrator}'s ensemble carries the variational equations: give variation "
+                         "(only wisdom_holman has an ensemble without them)")
+    if n > SMALL_N_MAX:
+        raise ValueError(f"ensemble: {integrator}: at most {SMALL_N_MAX} bodies per system (one all-pairs force "
+                         f"kernel per system), got {n}")
+    dpos = _as_systems("variation positions", variation[0], (k, 3, n))
+    dvel = _as_systems("variation velocities", variation[1], (k, 3, n))
+    if not (np.isfinite(dpos).all() and np.isfinite(dvel).all()) or not (np.abs(dpos).sum(axis=(1, 2)) +
+                                                                         np.abs(dvel).sum(axis=(1, 2)) > 0).all():
+        raise ValueError("ensemble: every system's initial variation must be finite and non-zero")
+    force = make_force(float(G), 0.0, n)
+    kernel = KICK_DRIFT_KERNELS[integrator]
+    kernel(pos, vel, np.zeros((k, 3, n)), dpos, dvel, np.zeros((k, 3, n)), np.zeros((k, TANGENT_SCRATCH_ROWS, 3, n)),
+           np.zeros((k, 1), dtype=np.int64), m, force, float(dt), float(t_start), np.int64(n_steps), escape_r2,
+           radii, check_collisions, np.int64(watch), weights, mu, np.zeros((k, 3, n)), np.zeros((k, 3, n)),
+           np.zeros((k, 0, 3, n)), np.zeros(0), status, steps, out)
     return EnsembleResult(status, steps, out, pos, vel)

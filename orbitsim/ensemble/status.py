@@ -33,3 +33,8 @@ N_COLUMNS = 6
 
 #: Column names, in column order.
 COLUMN_NAMES = ("survival_time", "max_e", "delta_a", "energy_error", "megno", "lyapunov")
+
+#: The schemes an ensemble runs (registry names): the Wisdom-Holman map (:mod:`.kernels`), and the
+#: kick-drift schemes with their variational equations (:mod:`.kick_drift`, whose kernel table names
+#: the same five; tests/ensemble/test_kick_drift.py checks it).
+SCHEMES = ("wisdom_holman", "verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8")

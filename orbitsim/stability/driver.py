@@ -82,7 +82,8 @@ def run_map(plan: MapPlan, directory: Path, *, max_energy_error: float, indicato
 
     full_attrs = dict(attrs)
     full_attrs.update({
-        "status_names": json.dumps(list(STATUS_NAMES)), "dt": plan.dt, "t_start": plan.t_start,
+        "status_names": json.dumps(list(STATUS_NAMES)), "integrator": plan.integrator, "dt": plan.dt,
+        "t_start": plan.t_start,
         "steps": plan.n_steps, "t_end": plan.t_start + plan.n_steps * plan.dt,
         "escape_distance": plan.escape_distance, "max_energy_error": max_energy_error,
         "watch_body": plan.names[plan.watch], "fingerprint": parts.fingerprint, "pixels": plan.n_pixels,

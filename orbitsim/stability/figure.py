@@ -99,7 +99,8 @@ def draw_map(path: str | os.PathLike, data: dict[str, Any], indicator: str) -> N
     if x["log"]:
         ax.set_xscale("log")
     ax.set_xlabel(_axis_label(x))
-    ax.set_title(f"{data.get('scenario_name', 'map')}: {indicator}, t = {data['t_end']:g}", fontsize="medium")
+    ax.set_title(f"{data.get('scenario_name', 'map')}: {indicator}, {data.get('integrator', 'wisdom_holman')}, "
+                 f"t = {data['t_end']:g}", fontsize="medium")  # maps written before the attribute were all WH
     target = Path(path)
     tmp = target.with_name(target.name + ".tmp.png")
     try:

@@ -1,8 +1,9 @@
 """What a map computes: the scenario, its axes, the time span and the start state of every pixel.
 
-:func:`make_plan` checks, once and before anything is written, that the ensemble kernel can run the
-scenario (the Wisdom-Holman map in Jacobi coordinates without correctors, forces or softening) and
-that every pixel's start state is valid; a :class:`MapPlan` then gives any chunk of pixels its
+:func:`make_plan` checks, once and before anything is written, that an ensemble kernel can run the
+scenario (the Wisdom-Holman map in Jacobi coordinates without correctors, or velocity Verlet or a
+leapfrog order with at most :data:`~orbitsim.physics.gravity.SMALL_N_MAX` bodies; no forces or
+softening) and that every pixel's start state is valid; a :class:`MapPlan` then gives any chunk of pixels its
 start states (:func:`chunk_states`) and runs it (:func:`run_chunk`) wherever it is sent. The plan's
 :func:`fingerprint` names what the pixels depend on, so a resumed map only reuses chunks of the
 same map.
@@ -44,6 +45,9 @@ class MapPlan(NamedTuple):
     barycentric: bool
     chunk: int  #: pixels per chunk
     seed: int  #: seed of every pixel's initial variation (orbitsim.chaos.megno.random_initial_variation)
+    #: the scheme (a name of orbitsim.ensemble.status.SCHEMES); the scenario document in ``doc`` names it
+    #: too, so the fingerprint, which hashes ``doc``, already tells maps of two schemes apart
+    integrator: str = "wisdom_holman"
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -128,7 +132,8 @@ def run_chunk(plan: MapPlan, index: int) -> ChunkResult:
     variation = (np.tile(dpos, (m.shape[0], 1, 1)), np.tile(dvel, (m.shape[0], 1, 1)))
     started = time.perf_counter()
     result = run_ensemble(m, x, v, G=plan.G, dt=plan.dt, n_steps=plan.n_steps, t_start=plan.t_start,
-                          escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation)
+                          escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation,
+                          integrator=plan.integrator)
     seconds = time.perf_counter() - started
     cols = result.indicators
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -157,17 +162,22 @@ def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float
     Every pixel's start state is built here once, so a pixel the scenario reader rejects (``e = 1.2``
     with ``a > 0``) is reported before anything is written.
     """
+    from orbitsim.ensemble.status import SCHEMES  # noqa: PLC0415 - lazy: beside its use
     from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 - lazy: loads numba
+    from orbitsim.physics.gravity import SMALL_N_MAX  # noqa: PLC0415 - lazy: as above
     from orbitsim.scenario.errors import ScenarioError  # noqa: PLC0415 - lazy: as above
 
     name = canonical_name(scenario.integrator)
-    if name != "wisdom_holman":
-        raise MapSpecError(f"integrator {name!r}: a map runs the ensemble kernel, which has the Wisdom-Holman map "
-                           "(integrator: wisdom_holman) only")
+    if name not in SCHEMES:
+        raise MapSpecError(f"integrator {name!r}: a map runs an ensemble kernel, which exists for "
+                           f"{', '.join(SCHEMES)} only (leapfrog4/6/8 are {{name: leapfrog, order: 4/6/8}})")
     settings = dict(scenario.integrator_settings or {})
     if settings.get("coordinates", "jacobi") != "jacobi" or int(settings.get("corrector", 0) or 0) != 0:
         raise MapSpecError("integrator settings: the ensemble's Wisdom-Holman map is Jacobi coordinates without "
                            "a corrector; remove coordinates/corrector from the scenario")
+    if name != "wisdom_holman" and len(scenario.names) > SMALL_N_MAX:
+        raise MapSpecError(f"bodies: the {name} ensemble takes at most {SMALL_N_MAX} bodies per system (one all-pairs "
+                           f"force kernel per pixel); the scenario has {len(scenario.names)}")
     if scenario.softening != 0.0:
         raise MapSpecError("softening: the ensemble kernel integrates unsoftened gravity; set softening: 0")
     if scenario.forces:
@@ -185,7 +195,7 @@ def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float
     plan = MapPlan(copy.deepcopy(doc), tuple(scenario.names), tuple(axes), float(scenario.G), float(scenario.dt),
                    float(scenario.t_start), n_steps, math.inf, watch,
                    None if scenario.radii is None else np.asarray(scenario.radii, dtype=np.float64),
-                   scenario.frame == "barycentric", int(chunk), int(seed))
+                   scenario.frame == "barycentric", int(chunk), int(seed), name)
     if len(plan.names) != len(doc["bodies"]):
         raise MapSpecError("a map needs every body in the scenario's bodies list (no ephemeris or generator)")
     farthest = 0.0

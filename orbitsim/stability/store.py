@@ -11,7 +11,8 @@ chunk is there, ``map.h5`` is built in memory and written to ``map.h5.tmp``, flu
 one-axis map) with attributes ``body``, ``key``, ``unit``, ``log``; ``status`` int8 (ny, nx) with the
 codes of :mod:`orbitsim.ensemble.status` (``status_names`` attribute), ``stop_time`` (ny, nx),
 ``unreliable`` bool (ny, nx) (``energy_error`` above ``max_energy_error``); group ``indicators`` with
-one (ny, nx) grid per indicator; attributes: the scenario (YAML text and its SHA-256), t_end, dt,
+one (ny, nx) grid per indicator; attributes: the scenario (YAML text and its SHA-256), the scheme
+(``integrator``, a registry name: wisdom_holman, verlet, leapfrog, leapfrog4, ...), t_end, dt,
 steps, escape distance, the command, wall time, pixels/s and provenance.
 """
 

@@ -268,3 +268,6 @@ def test_the_ensemble_probe_times_both_codes():
     for key in ("rebound_map_s", "orbitsim_map_s", "orbitsim_kernel_s", "ensemble_ns", "single_ns", "rebound_ns",
                 "large_map_s", "large_rebound_estimate_s"):
         assert result[key] > 0.0, key
+    rates = result["variational_pixel_steps_per_s"]
+    assert set(rates) == {"wisdom_holman", "leapfrog", "leapfrog4", "verlet"}
+    assert all(rate > 0.0 for rate in rates.values())

@@ -106,10 +106,79 @@ def test_a_bad_axis_is_one_line_exit_2_and_writes_nothing(scenario, tmp_path, x_
 
 def test_a_scheme_the_ensemble_lacks_is_refused(tmp_path):
     path = tmp_path / "v.yaml"
-    path.write_text(SCENARIO.replace("wisdom_holman", "verlet"), encoding="utf-8")
+    path.write_text(SCENARIO.replace("wisdom_holman", "rk4"), encoding="utf-8")
     code, _, stderr = _map([str(path), "--x", "planet.a=6:8:2", "--t-end", "10", "-o", str(tmp_path / "m")])
-    assert code == 2 and "wisdom_holman" in stderr and stderr.count("\n") == 1
+    assert code == 2 and stderr.count("\n") == 1
+    assert "integrator 'rk4': a map runs an ensemble kernel, which exists for wisdom_holman, verlet, leapfrog, " \
+           "leapfrog4, leapfrog6, leapfrog8 only" in stderr
     assert not (tmp_path / "m").exists()
+
+
+LEAPFROG4 = SCENARIO.replace("integrator: wisdom_holman", "integrator: {name: leapfrog, order: 4}")
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda text: text.replace("dt: 0.5", "dt: 0.5\nsoftening: 0.01"), "softening: the ensemble kernel integrates "
+                                                                       "unsoftened gravity; set softening: 0"),
+    (lambda text: text + "forces:\n  - {force: gr_potential, source: sun, c: 100.0}\n",
+     "forces: the ensemble kernel integrates gravity alone"),
+    (lambda text: text + "".join(f"  - {{name: p{i}, m: 0, x: [{30 + i}, 0, 0], v: [0, 0.1, 0]}}\n"
+                                 for i in range(44)),
+     "bodies: the leapfrog4 ensemble takes at most 48 bodies per system (one all-pairs force kernel per pixel); "
+     "the scenario has 49"),
+])
+def test_what_a_kick_drift_ensemble_cannot_honour_is_refused(tmp_path, edit, message):
+    path = tmp_path / "lf.yaml"
+    path.write_text(edit(LEAPFROG4), encoding="utf-8")
+    code, _, stderr = _map([str(path), "--x", "planet.a=6:8:2", "--t-end", "10", "-o", str(tmp_path / "m")])
+    assert code == 2 and stderr.count("\n") == 1 and message in stderr, stderr
+    assert not (tmp_path / "m").exists()
+
+
+def test_a_leapfrog_map_records_its_scheme_and_resumes_bit_identically(tmp_path, monkeypatch):
+    # leapfrog order 4 (the kernel tests/ensemble/test_kick_drift.py compiles too): a first run finds the
+    # disk full at its second chunk, the same command with --resume finishes it, and every grid is the bits
+    # of a map run straight through in chunks of another size
+    import orbitsim.stability.store as store
+
+    path = tmp_path / "lf.yaml"
+    path.write_text(LEAPFROG4, encoding="utf-8")
+    real_savez = np.savez
+    calls = []
+
+    def savez(file, **arrays):
+        calls.append(1)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device", str(file.name))
+        return real_savez(file, **arrays)
+
+    monkeypatch.setattr(store.np, "savez", savez)
+    out = tmp_path / "m"
+    assert _map([str(path), *AXES, "--chunk", "2", "-o", str(out)])[0] == 4
+    assert sorted(p.name for p in (out / "map.parts").iterdir()) == ["chunk-000000.npz", "plan.json"]
+    monkeypatch.setattr(store.np, "savez", real_savez)
+    code, stdout, stderr = _map([str(path), *AXES, "--chunk", "2", "--resume", "-o", str(out)])
+    assert code == 0, stderr
+    assert "6 pixels: 6 complete" in stdout
+    straight = tmp_path / "s"
+    assert _map([str(path), *AXES, "--chunk", "4", "-o", str(straight)])[0] == 0
+    a, b = _grids(out / "map.h5"), _grids(straight / "map.h5")
+    for name in a:
+        assert np.array_equal(a[name], b[name], equal_nan=True), name
+    with h5py.File(out / "map.h5", "r") as f:
+        assert f.attrs["integrator"] == "leapfrog4"
+    assert np.all(a["survival_time"] == 40.0)
+    assert np.all(np.isfinite(a["megno"])) and np.all(a["megno"] > 0.0)  # from the leapfrog's variational equations
+    assert np.all(a["energy_error"] < 1e-6)  # order 4 at dt = 0.5: far below the default bar
+    assert np.all(a["max_e"][1] > a["max_e"][0])  # e0 = 0.3 stays above e0 = 0 over 40 time units
+    wh = tmp_path / "wh"
+    (tmp_path / "wh.yaml").write_text(SCENARIO, encoding="utf-8")
+    assert _map([str(tmp_path / "wh.yaml"), *AXES, "-o", str(wh)])[0] == 0
+    with h5py.File(wh / "map.h5", "r") as f:
+        assert f.attrs["integrator"] == "wisdom_holman"
+    assert not np.array_equal(_grids(wh / "map.h5")["megno"], a["megno"])  # another scheme, other bits
+    info = CliRunner().invoke(cli, ["info", str(out / "map.h5")])
+    assert info.exit_code == 0 and "leapfrog4 dt = 0.5" in info.stdout
 
 
 def test_resume_without_a_killed_map_is_refused(scenario, tmp_path):
@@ -241,7 +310,8 @@ def test_a_massless_varied_body_not_listed_last_gets_the_one_line_hint(scenario:
     from orbitsim.stability.plan import make_plan
 
     for text, said in ((SCENARIO, True),
-                       (SCENARIO.replace("  - {name: probe, m: 0, x: [20, 0, 0], v: [0, 0.2, 0]}\n", ""), False)):
+                       (SCENARIO.replace("  - {name: probe, m: 0, x: [20, 0, 0], v: [0, 0.2, 0]}\n", ""), False),
+                       (LEAPFROG4, False)):  # the shared massive bodies are a Wisdom-Holman shortcut only
         path = tmp_path / "s.yaml"
         path.write_text(text, encoding="utf-8")
         doc, _ = parse_yaml(text, str(path))
