@@ -38,6 +38,7 @@ import math
 from functools import cache
 from typing import Any
 
+import numpy as np
 from numba import float64
 
 from orbitsim._jit import cuda_device, cuda_kernel
@@ -67,11 +68,12 @@ cuda = require_cuda()
 THREADS_PER_BLOCK = 128
 
 if simulated():
-    # The simulator's libdevice functions are stubs (they return None): the same quantity, by division.
+    # The simulator's libdevice functions are stubs (they return None): the same quantity, by division, in
+    # numpy's float64 so that 1 / 0 is inf as on the device (Python's floats would raise).
     @cuda_device
     def rsqrt(x):
         """1 / sqrt(x) (the simulator's stand-in for libdevice.rsqrt)."""
-        return 1.0 / math.sqrt(x)
+        return np.float64(1.0) / np.float64(math.sqrt(x))
 else:  # pragma: no cover - hardware only (benchmarks/gpu_check_ensemble.py)
     from numba.cuda.libdevice import rsqrt
 
