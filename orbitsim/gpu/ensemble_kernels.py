@@ -17,8 +17,8 @@ reasons and orbit tracking (:mod:`orbitsim.ensemble.kernels`), the energy terms
 * the gravity kicks (:func:`jacobi_gravity_kick`, :func:`pair_accelerations`): the CPU kick polls the
   host's stop flag and the run's force context, neither of which exists on the device, and the GPU
   takes ``1 / r^3`` from ``libdevice.rsqrt`` (1.4x over ``1 / sqrt`` on an H100, issue 30);
-* :func:`wh_tangent_step` and :func:`megno_read`: the CPU's call that kick and the force context's
-  tangent forces; the operations between are the same calls in the same order;
+* :func:`wh_tangent_kepler_kick_kepler` and :func:`megno_read`: the CPU's call that kick and the force
+  context's tangent forces; the operations between are the same calls in the same order (in place);
 * :func:`run_wh_variational` / :func:`run_leapfrog`: the CPU's per-system loop receives host scratch
   and the force context; this one the thread's local arrays.
 
@@ -154,30 +154,37 @@ def jacobi_gravity_kick(jpos, jvel, m, G, h, weights, mu, ipos, acc):
 
 
 @cuda_device
-def wh_tangent_step(pos, vel, dpos, dvel, m, G, dt, weights, mu, jpos, jvel, djpos, djvel, ipos, acc, dipos, dacc):
-    """One Wisdom-Holman step of the inertial state and its tangent vector (``tangent_step``: WHFast's safe
-    mode, K(dt/2) I(dt) K(dt/2) in Jacobi coordinates, back to inertial). Returns the Kepler status."""
-    inertial_to_jacobi(pos, weights, jpos)
-    inertial_to_jacobi(vel, weights, jvel)
-    inertial_to_jacobi(dpos, weights, djpos)
-    inertial_to_jacobi(dvel, weights, djvel)
+def wh_tangent_kepler_kick_kepler(pos, vel, dpos, dvel, m, G, dt, weights, mu, ipos, acc, dacc):
+    """The first part of a Wisdom-Holman step of the state and its tangent vector (``tangent_step``: WHFast's
+    safe mode): to Jacobi coordinates, K(dt/2) I(dt) K(dt/2), **in place**, leaving the Jacobi state in
+    ``pos``, ``vel``, ``dpos``, ``dvel`` for the caller to read and take back to inertial coordinates
+    (:func:`jacobi_to_inertial_state`). The same operations as the CPU's in the same order; in place (the
+    transforms allow it) so that one thread holds 7 arrays of (3, N), not 12: fewer registers spilled.
+    ``acc`` holds the tangent's inertial positions after the kick. Returns the Kepler status."""
+    inertial_to_jacobi(pos, weights, pos)
+    inertial_to_jacobi(vel, weights, vel)
+    inertial_to_jacobi(dpos, weights, dpos)
+    inertial_to_jacobi(dvel, weights, dvel)
     half = 0.5 * dt
-    status, _ = kepler_step_tangent(jpos, jvel, djpos, djvel, mu, half)
+    status, _ = kepler_step_tangent(pos, vel, dpos, dvel, mu, half)
     if status != KEPLER_OK:
         return status
-    jacobi_gravity_kick(jpos, jvel, m, G, dt, weights, mu, ipos, acc)
-    jacobi_to_inertial(djpos, weights, dipos)
-    tangent_accelerations(ipos, m, G, 0.0, dipos, dacc, SKIP_PAIR_0_1)
+    jacobi_gravity_kick(pos, vel, m, G, dt, weights, mu, ipos, acc)
+    jacobi_to_inertial(dpos, weights, acc)  # acc is free after the kick: the tangent's inertial positions
+    tangent_accelerations(ipos, m, G, 0.0, acc, dacc, SKIP_PAIR_0_1)
     inertial_to_jacobi(dacc, weights, dacc)
-    jacobi_term_tangent_kick(jpos, djpos, djvel, dacc, mu, dt)
-    status, _ = kepler_step_tangent(jpos, jvel, djpos, djvel, mu, half)
-    if status != KEPLER_OK:
-        return status
-    jacobi_to_inertial(jpos, weights, pos)
-    jacobi_to_inertial(jvel, weights, vel)
-    jacobi_to_inertial(djpos, weights, dpos)
-    jacobi_to_inertial(djvel, weights, dvel)
-    return KEPLER_OK
+    jacobi_term_tangent_kick(pos, dpos, dvel, dacc, mu, dt)
+    status, _ = kepler_step_tangent(pos, vel, dpos, dvel, mu, half)
+    return status
+
+
+@cuda_device
+def jacobi_to_inertial_state(pos, vel, dpos, dvel, weights):
+    """The Jacobi state and tangent vector back to inertial coordinates, in place (the step's end)."""
+    jacobi_to_inertial(pos, weights, pos)
+    jacobi_to_inertial(vel, weights, vel)
+    jacobi_to_inertial(dpos, weights, dpos)
+    jacobi_to_inertial(dvel, weights, dvel)
 
 
 @cuda_device
@@ -193,26 +200,27 @@ def megno_read(megno, pos, m, G, dpos, dvel, dacc, t, dt):
 
 @cuda_device
 def run_wh_variational(pos, vel, dpos, dvel, m, G, dt, t_start, n_steps, escape_r2, radii, check_collisions, watch,
-                       weights, mu, jpos, jvel, djpos, djvel, ipos, acc, dipos, dacc, out):
+                       weights, mu, ipos, acc, dacc, out):
     """One system's run (``run_system_variational`` of the CPU ensemble): ``n_steps`` steps or until it stops;
-    indicators into ``out`` (N_COLUMNS,). Returns ``(status, steps_done)``."""
+    indicators into ``out`` (N_COLUMNS,). Returns ``(status, steps_done)``. A system that diverged is left
+    with its Jacobi state of the failed step (NaN), where the CPU's keeps the inertial state before it."""
     e0 = energy(pos, vel, m, G)
-    inertial_to_jacobi(pos, weights, jpos)
-    inertial_to_jacobi(vel, weights, jvel)
-    a0, max_e = jacobi_elements_ae(jpos, jvel, mu, watch)
+    inertial_to_jacobi(pos, weights, ipos)
+    inertial_to_jacobi(vel, weights, acc)
+    a0, max_e = jacobi_elements_ae(ipos, acc, mu, watch)
     delta_a = 0.0
     megno = MegnoState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, t_start, 0)
     status = COMPLETE
     done = 0
     while done < n_steps:
-        kstatus = wh_tangent_step(pos, vel, dpos, dvel, m, G, dt, weights, mu, jpos, jvel, djpos, djvel, ipos, acc,
-                                  dipos, dacc)
+        kstatus = wh_tangent_kepler_kick_kepler(pos, vel, dpos, dvel, m, G, dt, weights, mu, ipos, acc, dacc)
         done += 1
         if kstatus != KEPLER_OK:
             status = DIVERGED
             break
+        max_e, delta_a = track_orbit(pos, vel, mu, watch, a0, max_e, delta_a)  # the Jacobi state at the end
+        jacobi_to_inertial_state(pos, vel, dpos, dvel, weights)
         megno = megno_read(megno, pos, m, G, dpos, dvel, dacc, t_start + done * dt, dt)
-        max_e, delta_a = track_orbit(jpos, jvel, mu, watch, a0, max_e, delta_a)
         status = _stop_reason(pos, radii, escape_r2, check_collisions)
         if status != COMPLETE:
             break
@@ -294,13 +302,8 @@ def wh_variational_kernel(n: int, watch: int) -> Any:
         v = cuda.local.array((3, n), float64)
         dp = cuda.local.array((3, n), float64)
         dv = cuda.local.array((3, n), float64)
-        jp = cuda.local.array((3, n), float64)
-        jv = cuda.local.array((3, n), float64)
-        djp = cuda.local.array((3, n), float64)
-        djv = cuda.local.array((3, n), float64)
         ip = cuda.local.array((3, n), float64)
         acc = cuda.local.array((3, n), float64)
-        dip = cuda.local.array((3, n), float64)
         dacc = cuda.local.array((3, n), float64)
         mk = cuda.local.array(n, float64)
         wk = cuda.local.array(n, float64)
@@ -318,7 +321,7 @@ def wh_variational_kernel(n: int, watch: int) -> Any:
                 dp[c, i] = dpos[c, i, k]
                 dv[c, i] = dvel[c, i, k]
         st, done = run_wh_variational(p, v, dp, dv, mk, G, dt, t_start, n_steps, escape_r2, rk, check_collisions,
-                                      watch, wk, muk, jp, jv, djp, djv, ip, acc, dip, dacc, o)
+                                      watch, wk, muk, ip, acc, dacc, o)
         for i in range(n):
             for c in range(3):
                 pos[c, i, k] = p[c, i]
