@@ -58,7 +58,10 @@ def report(n: int, site: str | None) -> list[dict[str, object]]:
     a3, a2, i1 = float64[:, :, ::1], float64[:, ::1], int64[::1]
     scalars = (float64, float64, float64, int64, float64, boolean)
     signatures = {
-        "leapfrog": (ensemble_kernels.leapfrog_kernel, (a3, a3, a2, a2, a2, a2, *scalars, i1, i1, a2)),
+        "leapfrog": (lambda n, w: ensemble_kernels.fixed_step_kernel(n, w, "leapfrog"),
+                     (a3, a3, a2, a2, a2, a2, *scalars, i1, i1, a2)),
+        "verlet": (lambda n, w: ensemble_kernels.fixed_step_kernel(n, w, "verlet"),
+                   (a3, a3, a2, a2, a2, a2, *scalars, i1, i1, a2)),
         "wisdom_holman_megno": (ensemble_kernels.wh_variational_kernel,
                                 (a3, a3, a3, a3, a2, a2, a2, a2, *scalars, i1, i1, a2)),
     }

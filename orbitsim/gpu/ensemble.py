@@ -7,8 +7,9 @@ index last, copies them to the device once, launches one thread per system
 :class:`~orbitsim.ensemble.run.EnsembleResult` with the CPU ensemble's statuses and indicator columns.
 
 Schemes: ``wisdom_holman`` (Jacobi coordinates, no corrector) with its tangent map, MEGNO and the mLCE,
-as the CPU ensemble's variational kernel and ``orbitsim map``; ``leapfrog`` (drift-kick-drift) with the
-same stops and the other indicators (``megno`` and ``lyapunov`` NaN).
+as the CPU ensemble's variational kernel and ``orbitsim map``; ``leapfrog`` (drift-kick-drift) and ``verlet``
+(velocity Verlet, kick-drift-kick) with the same stops and the other indicators (``megno`` and ``lyapunov``
+NaN).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from orbitsim.ensemble.status import N_COLUMNS
 __all__ = ["GPU_SCHEMES", "run_ensemble_gpu"]
 
 #: The schemes the GPU ensemble runs.
-GPU_SCHEMES = ("wisdom_holman", "leapfrog")
+GPU_SCHEMES = ("wisdom_holman", "leapfrog", "verlet")
 
 
 def _device_layout(a: np.ndarray) -> np.ndarray:
@@ -42,7 +43,7 @@ def run_ensemble_gpu(masses: np.ndarray, positions: np.ndarray, velocities: np.n
 
     Parameters as :func:`orbitsim.ensemble.run_ensemble`; ``scheme`` is one of :data:`GPU_SCHEMES`.
     ``wisdom_holman`` needs ``variation`` (its kernel carries the tangent vector: MEGNO and the Lyapunov
-    time); ``leapfrog`` takes none.
+    time); ``leapfrog`` and ``verlet`` take none.
 
     Raises
     ------
@@ -55,8 +56,8 @@ def run_ensemble_gpu(masses: np.ndarray, positions: np.ndarray, velocities: np.n
         raise ValueError(f"ensemble: scheme {scheme!r} has no GPU kernel; use one of {', '.join(GPU_SCHEMES)}")
     if scheme == "wisdom_holman" and variation is None:
         raise ValueError("ensemble: the GPU wisdom_holman kernel carries the tangent vector; give variation")
-    if scheme == "leapfrog" and variation is not None:
-        raise ValueError("ensemble: the GPU leapfrog kernel has no variational equations; give no variation")
+    if scheme != "wisdom_holman" and variation is not None:
+        raise ValueError(f"ensemble: the GPU {scheme} kernel has no variational equations; give no variation")
     systems = prepare_systems(masses, positions, velocities, G=G, dt=dt, n_steps=n_steps,
                               escape_distance=escape_distance, radii=radii, watch=watch)
     k, n = systems.masses.shape
@@ -85,7 +86,7 @@ def run_ensemble_gpu(masses: np.ndarray, positions: np.ndarray, velocities: np.n
             d["pos"], d["vel"], d_dpos, d_dvel, d["m"], d["weights"], d["mu"], d["radii"], *scalars, d_status,
             d_steps, d_out)
     else:
-        ensemble_kernels.leapfrog_kernel(n, int(watch))[blocks, per_block](
+        ensemble_kernels.fixed_step_kernel(n, int(watch), scheme)[blocks, per_block](
             d["pos"], d["vel"], d["m"], d["weights"], d["mu"], d["radii"], *scalars, d_status, d_steps, d_out)
     cuda.synchronize()
     return EnsembleResult(d_status.copy_to_host(), d_steps.copy_to_host(), d_out.copy_to_host().T.copy(),

@@ -1,6 +1,6 @@
 """The ensemble on one GPU: one CUDA thread per system, FP64, the body count a compile-time constant.
 
-A kernel factory per (scheme, N) (:func:`wh_variational_kernel`, :func:`leapfrog_kernel`) closes over N,
+A kernel factory per (scheme, N) (:func:`wh_variational_kernel`, :func:`fixed_step_kernel`) closes over N,
 so every per-thread ``cuda.local.array((3, N))`` has a constant shape: NVVM unrolls the loops over the
 bodies and keeps the arrays in registers (a body count passed at run time put them in local memory,
 10x slower in the issue's measurement). The global arrays are laid out ``(3, N, K)``, the system index
@@ -19,7 +19,7 @@ reasons and orbit tracking (:mod:`orbitsim.ensemble.kernels`), the energy terms
   takes ``1 / r^3`` from ``libdevice.rsqrt`` (1.4x over ``1 / sqrt`` on an H100, issue 30);
 * :func:`wh_tangent_kepler_kick_kepler` and :func:`megno_read`: the CPU's call that kick and the force
   context's tangent forces; the operations between are the same calls in the same order (in place);
-* :func:`run_wh_variational` / :func:`run_leapfrog`: the CPU's per-system loop receives host scratch
+* :func:`run_wh_variational` / :func:`run_fixed_step`: the CPU's per-system loop receives host scratch
   and the force context; this one the thread's local arrays.
 
 Agreement: not bitwise. NVVM contracts multiply-adds into FMAs and ``rsqrt`` rounds differently from
@@ -238,10 +238,12 @@ def run_wh_variational(pos, vel, dpos, dvel, m, G, dt, t_start, n_steps, escape_
 
 
 @cuda_device
-def run_leapfrog(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_collisions, watch, weights, mu, jpos,
-                 jvel, acc, out):
-    """One system's drift-kick-drift leapfrog run (orbitsim.integrators.leapfrog order 2: x += v dt/2,
-    v += a dt, x += v dt/2), with the CPU ensemble's stops and indicators (``max_e``, ``delta_a`` from the
+def run_fixed_step(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_collisions, watch, weights, mu, jpos,
+                   jvel, acc, verlet, out):
+    """One system's run of a fixed-step scheme: the drift-kick-drift leapfrog (orbitsim.integrators.leapfrog
+    order 2: x += v dt/2, v += a dt, x += v dt/2) or, with ``verlet`` (a compile-time constant), velocity
+    Verlet (orbitsim.integrators.verlet: v += a dt/2, x += v dt, a = a(x), v += a dt/2, the closing
+    accelerations reused), with the CPU ensemble's stops and indicators (``max_e``, ``delta_a`` from the
     Jacobi orbit of ``watch`` after every step; ``megno``, ``lyapunov`` NaN). Returns ``(status, steps)``."""
     n = pos.shape[1]
     e0 = energy(pos, vel, m, G)
@@ -252,15 +254,27 @@ def run_leapfrog(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_c
     half = 0.5 * dt
     status = COMPLETE
     done = 0
-    while done < n_steps:
-        for c in range(3):
-            for i in range(n):
-                pos[c, i] += half * vel[c, i]
+    if verlet:
         pair_accelerations(pos, m, G, acc)
-        for c in range(3):
-            for i in range(n):
-                vel[c, i] += dt * acc[c, i]
-                pos[c, i] += half * vel[c, i]
+    while done < n_steps:
+        if verlet:
+            for c in range(3):
+                for i in range(n):
+                    vel[c, i] += half * acc[c, i]
+                    pos[c, i] += dt * vel[c, i]
+            pair_accelerations(pos, m, G, acc)
+            for c in range(3):
+                for i in range(n):
+                    vel[c, i] += half * acc[c, i]
+        else:
+            for c in range(3):
+                for i in range(n):
+                    pos[c, i] += half * vel[c, i]
+            pair_accelerations(pos, m, G, acc)
+            for c in range(3):
+                for i in range(n):
+                    vel[c, i] += dt * acc[c, i]
+                    pos[c, i] += half * vel[c, i]
         done += 1
         inertial_to_jacobi(pos, weights, jpos)
         inertial_to_jacobi(vel, weights, jvel)
@@ -337,9 +351,12 @@ def wh_variational_kernel(n: int, watch: int) -> Any:
 
 
 @cache
-def leapfrog_kernel(n: int, watch: int) -> Any:
-    """The drift-kick-drift leapfrog kernel for systems of ``n`` bodies: arguments as
-    :func:`wh_variational_kernel`'s without ``dpos``, ``dvel``."""
+def fixed_step_kernel(n: int, watch: int, scheme: str) -> Any:
+    """The kernel of a fixed-step scheme, ``leapfrog`` or ``verlet`` (:func:`run_fixed_step`), for systems of
+    ``n`` bodies: arguments as :func:`wh_variational_kernel`'s without ``dpos``, ``dvel``."""
+    if scheme not in ("leapfrog", "verlet"):
+        raise ValueError(f"no fixed-step GPU kernel for {scheme!r}")
+    verlet = scheme == "verlet"
 
     @cuda_kernel
     def kernel(pos, vel, m, weights, mu, radii, G, dt, t_start, n_steps, escape_r2, check_collisions, status, steps,
@@ -365,8 +382,8 @@ def leapfrog_kernel(n: int, watch: int) -> Any:
             for c in range(3):
                 p[c, i] = pos[c, i, k]
                 v[c, i] = vel[c, i, k]
-        st, done = run_leapfrog(p, v, mk, G, dt, t_start, n_steps, escape_r2, rk, check_collisions, watch, wk, muk,
-                                jp, jv, acc, o)
+        st, done = run_fixed_step(p, v, mk, G, dt, t_start, n_steps, escape_r2, rk, check_collisions, watch, wk, muk,
+                                  jp, jv, acc, verlet, o)
         for i in range(n):
             for c in range(3):
                 pos[c, i, k] = p[c, i]

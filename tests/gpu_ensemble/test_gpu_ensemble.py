@@ -88,12 +88,13 @@ def test_the_front_door_refuses_what_the_gpu_kernels_cannot_run() -> None:
     x = np.array([[[0.0, 1.0], [0.0, 0.0], [0.0, 0.0]]])
     v = np.array([[[0.0, 0.0], [0.0, 1.0], [0.0, 0.0]]])
     var = (np.ones((1, 3, 2)), np.ones((1, 3, 2)))
-    with pytest.raises(ValueError, match="has no GPU kernel; use one of wisdom_holman, leapfrog"):
+    with pytest.raises(ValueError, match="has no GPU kernel; use one of wisdom_holman, leapfrog, verlet"):
         run_ensemble_gpu(m, x, v, G=1.0, dt=0.1, n_steps=1, scheme="ias15")
     with pytest.raises(ValueError, match="carries the tangent vector; give variation"):
         run_ensemble_gpu(m, x, v, G=1.0, dt=0.1, n_steps=1)
-    with pytest.raises(ValueError, match="no variational equations"):
-        run_ensemble_gpu(m, x, v, G=1.0, dt=0.1, n_steps=1, variation=var, scheme="leapfrog")
+    for scheme in ("leapfrog", "verlet"):
+        with pytest.raises(ValueError, match=f"the GPU {scheme} kernel has no variational equations"):
+            run_ensemble_gpu(m, x, v, G=1.0, dt=0.1, n_steps=1, variation=var, scheme=scheme)
     with pytest.raises(ValueError, match="central body"):  # the CPU ensemble's own check (prepare_systems)
         run_ensemble_gpu(m * 0.0, x, v, G=1.0, dt=0.1, n_steps=1, variation=var)
     with pytest.raises(ValueError, match="initial variation must be finite and non-zero"):
