@@ -3,8 +3,12 @@
 A kernel factory per (scheme, N) (:func:`wh_variational_kernel`, :func:`fixed_step_kernel`) closes over N,
 so every per-thread ``cuda.local.array((3, N))`` has a constant shape: NVVM unrolls the loops over the
 bodies and keeps the arrays in registers (a body count passed at run time put them in local memory,
-10x slower in the issue's measurement). The global arrays are laid out ``(3, N, K)``, the system index
-innermost, so a warp's 32 threads read one body's coordinate of 32 systems in one coalesced access.
+10x slower in the issue's measurement). The watched body is a constant too, for the same reason. One
+exception: the Wisdom-Holman step's loop over bodies, each a whole Kepler solve, is not unrolled, so the
+Jacobi arrays it indexes live in local memory (416 bytes at N = 4; ``benchmarks/gpu_ptx_report.py``).
+The Kepler iteration count differs between threads, so a warp waits for its slowest system. The global
+arrays are laid out ``(3, N, K)``, the system index innermost, so a warp's 32 threads read one body's
+coordinate of 32 systems in one coalesced access.
 
 One source of truth. The step is made of the CPU ensemble's own jitted functions, which numba-cuda
 compiles for the device from the same Python source when a kernel calls them: the Jacobi transforms,
@@ -24,7 +28,7 @@ reasons and orbit tracking (:mod:`orbitsim.ensemble.kernels`), the energy terms
 
 Agreement: not bitwise. NVVM contracts multiply-adds into FMAs and ``rsqrt`` rounds differently from
 ``G / (r2 sqrt(r2))``, so a GPU system agrees with the CPU ensemble to ~1e-13 relative over short runs
-(tests/gpu/test_gpu_ensemble.py, under Numba's CUDA simulator, which has neither FMA nor rsqrt and so
+(tests/gpu_ensemble/, under Numba's CUDA simulator, which has neither FMA nor rsqrt and so
 tests the operations; ``benchmarks/gpu_check_ensemble.py`` measures the real device). A chaotic system
 amplifies any round-off, so over long runs chaotic pixels differ in their digits, not their verdict.
 
