@@ -124,6 +124,11 @@ def _variation(k: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.tile(dpos, (k, 1, 1)), np.tile(dvel, (k, 1, 1))
 
 
+def _repeats(sizes: Sizes) -> int:
+    """Timed launches per figure: at most 3 (gpu_check.py's Sizes asks 7 of its shorter kernels)."""
+    return max(1, min(int(getattr(sizes, "repeats", 3)), 3))
+
+
 def median_seconds(call: Callable[[], Any], repeats: int) -> float:
     """Median wall time of ``call`` (which synchronises), after one untimed call that compiles."""
     call()
@@ -184,7 +189,7 @@ def leapfrog_throughput(sizes: Sizes) -> list[Figure]:
         def call(m=m, x=x, v=v, steps=steps) -> Any:
             return run_ensemble_gpu(m, x, v, G=1.0, dt=JS_DT, n_steps=steps, scheme="leapfrog", watch=3)
 
-        seconds = median_seconds(call, sizes.repeats)
+        seconds = median_seconds(call, _repeats(sizes))
         target = 2e10 if not sizes.quick else None
         out.append(figure("ensemble", "leapfrog_5body_system_steps_per_s", k * steps / seconds, "system-steps/s", k,
                           target, higher_is_better=True))
@@ -200,7 +205,7 @@ def wh_megno_throughput(sizes: Sizes) -> list[Figure]:
     k, n = m.shape
     variation = _variation(k, n)
     seconds = median_seconds(lambda: run_ensemble_gpu(m, x, v, G=1.0, dt=JS_DT, n_steps=steps, watch=3,
-                                                      variation=variation), sizes.repeats)
+                                                      variation=variation), _repeats(sizes))
     return [figure("ensemble", "wh_megno_4body_system_steps_per_s", k * steps / seconds, "system-steps/s", k)]
 
 
@@ -219,7 +224,7 @@ def js_maps(sizes: Sizes) -> list[Figure]:
         variation = _variation(k, n)
         seconds = median_seconds(lambda m=m, x=x, v=v, variation=variation: run_ensemble_gpu(
             m, x, v, G=1.0, dt=JS_DT, n_steps=steps, watch=3, variation=variation, escape_distance=100.0),
-            1 if side > 50 else sizes.repeats)
+            1 if side > 50 else _repeats(sizes))
         rate = k * steps / seconds
         out.append(figure("js_map", f"js_map_{side}x{side}_s", seconds, "s", k, target))
     estimate = 1_000_000 * steps / rate
