@@ -65,6 +65,8 @@ def test_a_gpu_map_records_its_device_and_agrees_with_the_cpu_map(scenario, tmp_
     gpu, attrs = _read(tmp_path / "gpu" / "map.h5")
     assert attrs["device"] == "gpu" and attrs["device_name"] == "CUDA simulator"
     assert attrs["chunk"] == 65536  # the GPU's default chunk: one launch for this map
+    info = CliRunner().invoke(cli, ["info", str(tmp_path / "gpu" / "map.h5")])
+    assert info.exit_code == 0 and "device: gpu (CUDA simulator)" in info.stdout
     assert _map([str(scenario), *AXES, "-o", str(tmp_path / "cpu")])[0] == 0
     cpu, cpu_attrs = _read(tmp_path / "cpu" / "map.h5")
     assert "device" not in cpu_attrs and cpu_attrs["fingerprint"] != attrs["fingerprint"]
