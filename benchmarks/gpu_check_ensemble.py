@@ -5,8 +5,8 @@ Usage, from the repository root::
     python3 benchmarks/gpu_check_ensemble.py --out gpu_check_ensemble.jsonl   # on a GPU machine (PYTHONPATH=.)
     NUMBA_ENABLE_CUDASIM=1 python3 benchmarks/gpu_check_ensemble.py --quick    # tiny sizes, Numba's CUDA simulator
 
-Written beside ``benchmarks/gpu_check.py`` (the direct-sum sections) with its conventions, to be folded
-into it: :data:`ENSEMBLE_SECTIONS` are functions of a ``sizes`` object with ``quick`` (and ``repeats``)
+Written beside the direct-sum device check (``gpu_check.py``) with its conventions, to be folded into
+it: :data:`ENSEMBLE_SECTIONS` are functions of a ``sizes`` object with ``quick`` (and ``repeats``)
 that return figure records; each is printed as one JSON line (``section``, ``figure``, ``value``,
 ``unit``, ``n``, ``target``, ``ok``, ``device``) and written to ``--out``. Its imports are numpy, numba,
 numba-cuda and orbitsim modules that import only those: the Jupiter-Saturn pixels are built here from

@@ -5,7 +5,7 @@ seconds numba-cuda and NVVM took, the PTX's local-memory bytes (arrays indexed a
 not in registers), its ``rsqrt`` and FP64 ``fma`` counts, and, where ``ptxas`` is found, the registers,
 stack frame and spill bytes of the machine code. No kernel runs: this is the check that the kernels
 compile for the device at all (the CUDA simulator runs them as Python and cannot tell), and the
-resource report that METHOD.md asks for before a device is spent.
+compiler's resource report, worth reading before any device time is spent.
 
 Needs libnvvm, libdevice and NVRTC (and ptxas for the second half), e.g. from PyPI::
 
