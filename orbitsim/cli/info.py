@@ -289,5 +289,7 @@ def _map_info(path: str) -> None:
         click.echo(f"    {name}: {shown}")
     click.echo(f"  time: {data['wall_time_s']:.3g} s wall for {data['pixels_computed']} pixels computed in this "
                f"run; kernel {data['kernel_time_s']:.3g} s, {data['pixels_per_s']:.4g} pixels/s")
+    if data.get("device") == "gpu":
+        click.echo(f"  device: gpu ({data.get('device_name')})")
     click.echo(f"  orbitsim {data.get('provenance_orbitsim_version')}, {data.get('provenance_numba_threads')} "
                f"threads, {data.get('provenance_cpu_model')}; command: {data.get('command')}")

@@ -17,6 +17,10 @@ if TYPE_CHECKING:
 #: ``orbitsim.stability.plan.INDICATORS``, written out so that the CLI imports only click at start-up
 #: (tests/stability checks that the two agree).
 INDICATOR_CHOICES = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_a", "energy_error")
+#: Default pixels per chunk: on the CPU, a few kernel calls' worth per core; on a GPU, 65,536 threads
+#: (512 blocks of 128: several waves over an H100's 132 multiprocessors, one launch per 256 x 256 pixels).
+CPU_CHUNK = 256
+GPU_CHUNK = 65536
 
 
 @click.command("map")
@@ -41,13 +45,18 @@ INDICATOR_CHOICES = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_
 @click.option("--escape-distance", type=float, default=None,
               help="A body farther than this from body 0 has escaped (default: 10 times the largest start "
                    "distance from body 0 over the map).")
-@click.option("--chunk", type=click.IntRange(min=1), default=256, show_default=True,
-              help="Pixels per kernel call (and per Dask task); finished chunks survive a kill.")
+@click.option("--chunk", type=click.IntRange(min=1), default=None,
+              help=f"Pixels per kernel call (and per Dask task); finished chunks survive a kill. Default: "
+                   f"{CPU_CHUNK} on the CPU, {GPU_CHUNK} with --device gpu (enough threads to fill a GPU).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of every pixel's initial tangent vector (MEGNO, Lyapunov time): unit norm per body, drawn "
                    "from N(0, 1) with numpy's PCG64.")
 @click.option("--scheduler", metavar="ADDRESS", default=None,
               help="Send the chunks to this Dask scheduler (tcp://HOST:PORT) instead of running them here.")
+@click.option("--device", type=click.Choice(["cpu", "gpu"]), default="cpu", show_default=True,
+              help="gpu: every pixel is one thread of a CUDA kernel (orbitsim.gpu.ensemble; needs numba-cuda and a "
+                   "GPU), its results equal to the CPU's to ~1e-13 relative, not bit for bit; chunks run in this "
+                   "process (not with --scheduler).")
 @click.option("--resume", is_flag=True,
               help="Finish a killed map in the directory (the same command does the same); refuse if none is there.")
 @click.option("--force", is_flag=True, help="Start over: replace a finished map or another map's parts.")
@@ -55,8 +64,8 @@ INDICATOR_CHOICES = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_
 @threads_option()
 @reports_errors
 def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: bool, t_end: str, outdir: str,
-            indicator: str, max_energy_error: float, escape_distance: float | None, chunk: int, seed: int,
-            scheduler: str | None, resume: bool, force: bool, quiet: bool, threads: int | None) -> None:
+            indicator: str, max_energy_error: float, escape_distance: float | None, chunk: int | None, seed: int,
+            scheduler: str | None, device: str, resume: bool, force: bool, quiet: bool, threads: int | None) -> None:
     """Map SCENARIO's stability over one or two parameters: map.h5 (every indicator) and map.png.
 
     Each pixel runs SCENARIO with the axes' values from its start to --t-end with the scenario's
@@ -69,6 +78,10 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
 
     Finished chunks are kept in DIR/map.parts as they finish: a killed map loses none, and the
     same command (or --resume) runs only the rest, with bit-identical pixels.
+
+    With --device gpu every pixel is one thread of a CUDA kernel (the same scheme, stops and
+    indicators; FP64, equal to the CPU's pixels to round-off); map.h5 records the device, and a
+    map is resumed on the device it was started on.
 
     \b
     Examples:
@@ -88,6 +101,18 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
     from orbitsim.stability.plan import make_plan
     from orbitsim.stability.store import MapParts
 
+    if device == "gpu":
+        if scheduler is not None:
+            fail("--device gpu with --scheduler: a GPU map runs its chunks in this process; drop --scheduler",
+                 EXIT_USAGE)
+        from orbitsim.gpu.device import GPUUnavailableError, device_name, require_cuda
+
+        try:
+            require_cuda()
+        except GPUUnavailableError as err:
+            fail(str(err), EXIT_USAGE)
+    if chunk is None:
+        chunk = GPU_CHUNK if device == "gpu" else CPU_CHUNK
     base = load_scenario(scenario)
     path, label = _locate(scenario)
     doc, _ = parse_yaml(path.read_text(encoding="utf-8"), label)
@@ -102,7 +127,7 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
             raise MapSpecError(f"--max-energy-error must be > 0, got {max_energy_error:g}")
         if escape_distance is not None and not escape_distance > 0.0:
             raise MapSpecError(f"--escape-distance must be > 0, got {escape_distance:g}")
-        plan = make_plan(base, doc, axes, end, escape_distance, chunk, seed)
+        plan = make_plan(base, doc, axes, end, escape_distance, chunk, seed, device)
     except MapSpecError as err:
         fail(str(err), EXIT_USAGE)
     directory = Path(outdir)
@@ -121,8 +146,8 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
             parts.remove()
             matches = None
         elif matches is False:
-            fail(f"{directory}: holds the parts of another map (other scenario, axes, t-end or chunk); use another "
-                 "-o, or --force to start over", EXIT_USAGE)
+            fail(f"{directory}: holds the parts of another map (other scenario, axes, t-end, chunk or device); use "
+                 "another -o, or --force to start over", EXIT_USAGE)
         elif target.exists() and matches is None:
             from orbitsim.stability.driver import read_map
 
@@ -139,7 +164,9 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
                  "scenario_name": base.name, "scenario_source": str(base.source),
                  "command": " ".join(["orbitsim", *sys.argv[1:]]), "time_unit": _time_unit(base.units, base.G)}
         attrs.update({f"provenance_{k}": v for k, v in provenance().items()})
-        if not quiet:
+        if device == "gpu":  # a CPU map's attributes stay as they were
+            attrs.update({"device": "gpu", "device_name": device_name()})
+        if not quiet and device == "cpu":
             _hint_shared_massive(plan)
         progress = None if quiet else (lambda line: click.echo(f"\r{line}   ", err=True, nl=False))
         data = run_map(plan, directory, max_energy_error=max_energy_error, indicator=indicator, attrs=attrs,

@@ -14,7 +14,7 @@ import numpy as np
 
 from orbitsim.ensemble.status import N_COLUMNS, SCHEMES
 
-__all__ = ["EnsembleResult", "run_ensemble"]
+__all__ = ["EnsembleResult", "EnsembleSystems", "check_variation", "prepare_systems", "run_ensemble"]
 
 
 class EnsembleResult(NamedTuple):
@@ -32,6 +32,65 @@ def _as_systems(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndar
     if array.shape != shape:
         raise ValueError(f"ensemble: {name} has shape {array.shape}, expected {shape}")
     return array.copy()
+
+
+class EnsembleSystems(NamedTuple):
+    """K systems checked and coerced by :func:`prepare_systems`: fresh contiguous float64 copies."""
+
+    masses: np.ndarray  #: (K, N)
+    pos: np.ndarray  #: (K, 3, N)
+    vel: np.ndarray  #: (K, 3, N)
+    radii: np.ndarray  #: (K, N), zeros when none were given
+    check_collisions: bool  #: whether radii were given
+    weights: np.ndarray  #: (K, N) Jacobi weights m_i / M_i (1 for body 0)
+    mu: np.ndarray  #: (K, N) Kepler parameters G M_i
+
+
+def prepare_systems(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float, dt: float,
+                    n_steps: int, escape_distance: float, radii: np.ndarray | None, watch: int,
+                    integrator: str = "wisdom_holman") -> EnsembleSystems:
+    """Check K systems for an ensemble kernel (the CPU's and the GPU's, orbitsim.gpu.ensemble) and derive
+    their Jacobi weights and Kepler parameters; raise ValueError with one line. Arguments as
+    :func:`run_ensemble`'s."""
+    m = np.ascontiguousarray(masses, dtype=np.float64)
+    if m.ndim != 2 or m.shape[1] < 2:
+        raise ValueError(f"ensemble: masses must have shape (K, N) with N >= 2, got {m.shape}")
+    k, n = m.shape
+    if not (m[:, 0] > 0.0).all():
+        why = ("wisdom_holman needs a central body" if integrator == "wisdom_holman" else
+               "the indicators follow Jacobi orbits about body 0 and escapes are measured from it")
+        raise ValueError(f"ensemble: {why}: every system's first mass must be > 0")
+    if (m < 0.0).any() or not np.isfinite(m).all():
+        raise ValueError("ensemble: masses must be finite and >= 0")
+    pos = _as_systems("positions", positions, (k, 3, n))
+    vel = _as_systems("velocities", velocities, (k, 3, n))
+    if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+        raise ValueError("ensemble: start states must be finite")
+    if not (dt > 0.0 and np.isfinite(dt)):
+        raise ValueError(f"ensemble: dt must be finite and > 0, got {dt}")
+    if int(n_steps) < 0:
+        raise ValueError(f"ensemble: n_steps must be >= 0, got {n_steps}")
+    if not 1 <= watch < n:
+        raise ValueError(f"ensemble: watch must be a body index in 1..{n - 1}, got {watch}")
+    if not escape_distance > 0.0:
+        raise ValueError(f"ensemble: escape_distance must be > 0, got {escape_distance}")
+    check_collisions = radii is not None
+    r = np.zeros((k, n)) if radii is None else _as_systems("radii", radii, (k, n))
+    interior = np.cumsum(m, axis=1)  # M_i summed left to right, as make_work's mu and jacobi_weights
+    weights = m / interior
+    weights[:, 0] = 1.0
+    mu = G * interior
+    return EnsembleSystems(m, pos, vel, r, check_collisions, weights, mu)
+
+
+def check_variation(variation: tuple[np.ndarray, np.ndarray], k: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(K, 3, N) copies of the initial tangent vectors; ValueError unless each system's is finite and non-zero."""
+    dpos = _as_systems("variation positions", variation[0], (k, 3, n))
+    dvel = _as_systems("variation velocities", variation[1], (k, 3, n))
+    if not (np.isfinite(dpos).all() and np.isfinite(dvel).all()) or not (np.abs(dpos).sum(axis=(1, 2)) +
+                                                                         np.abs(dvel).sum(axis=(1, 2)) > 0).all():
+        raise ValueError("ensemble: every system's initial variation must be finite and non-zero")
+    return dpos, dvel
 
 
 def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float, dt: float,
@@ -82,36 +141,12 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
     from orbitsim.ensemble.kernels import run_ensemble_wh  # noqa: PLC0415 - lazy: loads numba
 
     launch_threads()  # before a cached prange kernel is loaded (see launch_threads)
-    m = np.ascontiguousarray(masses, dtype=np.float64)
-    if m.ndim != 2 or m.shape[1] < 2:
-        raise ValueError(f"ensemble: masses must have shape (K, N) with N >= 2, got {m.shape}")
-    k, n = m.shape
     if integrator not in SCHEMES:
         raise ValueError(f"ensemble: no ensemble kernel for integrator {integrator!r}; schemes: {', '.join(SCHEMES)}")
-    if not (m[:, 0] > 0.0).all():
-        why = ("wisdom_holman needs a central body" if integrator == "wisdom_holman" else
-               "the indicators follow Jacobi orbits about body 0 and escapes are measured from it")
-        raise ValueError(f"ensemble: {why}: every system's first mass must be > 0")
-    if (m < 0.0).any() or not np.isfinite(m).all():
-        raise ValueError("ensemble: masses must be finite and >= 0")
-    pos = _as_systems("positions", positions, (k, 3, n))
-    vel = _as_systems("velocities", velocities, (k, 3, n))
-    if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
-        raise ValueError("ensemble: start states must be finite")
-    if not (dt > 0.0 and np.isfinite(dt)):
-        raise ValueError(f"ensemble: dt must be finite and > 0, got {dt}")
-    if int(n_steps) < 0:
-        raise ValueError(f"ensemble: n_steps must be >= 0, got {n_steps}")
-    if not 1 <= watch < n:
-        raise ValueError(f"ensemble: watch must be a body index in 1..{n - 1}, got {watch}")
-    if not escape_distance > 0.0:
-        raise ValueError(f"ensemble: escape_distance must be > 0, got {escape_distance}")
-    check_collisions = radii is not None
-    r = np.zeros((k, n)) if radii is None else _as_systems("radii", radii, (k, n))
-    interior = np.cumsum(m, axis=1)  # M_i summed left to right, as make_work's mu and jacobi_weights
-    weights = m / interior
-    weights[:, 0] = 1.0
-    mu = G * interior
+    m, pos, vel, r, check_collisions, weights, mu = prepare_systems(masses, positions, velocities, G=G, dt=dt,
+                                                                    n_steps=n_steps, escape_distance=escape_distance,
+                                                                    radii=radii, watch=watch, integrator=integrator)
+    k, n = m.shape
     scratch = [np.zeros((k, 3, n)) for _ in range(4)]
     from orbitsim.physics.kepler import KEPLER_SCRATCH_ROWS  # noqa: PLC0415 - lazy: loads numba
 
@@ -129,11 +164,7 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
         from orbitsim.integrators.wisdom_holman.tangent import TANGENT_SCRATCH_ROWS  # noqa: PLC0415 - as above
         from orbitsim.physics.force_context import make_force  # noqa: PLC0415 - lazy: as above
 
-        dpos = _as_systems("variation positions", variation[0], (k, 3, n))
-        dvel = _as_systems("variation velocities", variation[1], (k, 3, n))
-        if not (np.isfinite(dpos).all() and np.isfinite(dvel).all()) or not (np.abs(dpos).sum(axis=(1, 2)) +
-                                                                             np.abs(dvel).sum(axis=(1, 2)) > 0).all():
-            raise ValueError("ensemble: every system's initial variation must be finite and non-zero")
+        dpos, dvel = check_variation(variation, k, n)
         force = make_force(float(G), 0.0, n)
         if shared_massive:
             from orbitsim.ensemble.restricted import (  # noqa: PLC0415 - lazy: loads numba
@@ -175,11 +206,7 @@ def _run_kick_drift(integrator: str, m: np.ndarray, pos: np.ndarray, vel: np.nda
     if n > SMALL_N_MAX:
         raise ValueError(f"ensemble: {integrator}: at most {SMALL_N_MAX} bodies per system (one all-pairs force "
                          f"kernel per system), got {n}")
-    dpos = _as_systems("variation positions", variation[0], (k, 3, n))
-    dvel = _as_systems("variation velocities", variation[1], (k, 3, n))
-    if not (np.isfinite(dpos).all() and np.isfinite(dvel).all()) or not (np.abs(dpos).sum(axis=(1, 2)) +
-                                                                         np.abs(dvel).sum(axis=(1, 2)) > 0).all():
-        raise ValueError("ensemble: every system's initial variation must be finite and non-zero")
+    dpos, dvel = check_variation(variation, k, n)
     force = make_force(float(G), 0.0, n)
     kernel = KICK_DRIFT_KERNELS[integrator]
     kernel(pos, vel, np.zeros((k, 3, n)), dpos, dvel, np.zeros((k, 3, n)), np.zeros((k, TANGENT_SCRATCH_ROWS, 3, n)),

@@ -28,6 +28,8 @@ thread had three quarters of it.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import prange
 from numba.extending import overload
@@ -101,7 +103,8 @@ def _potential_small(pos, m, eps2):
             dx = pos[0, j] - pos[0, i]
             dy = pos[1, j] - pos[1, i]
             dz = pos[2, j] - pos[2, i]
-            term = m[j] / np.sqrt(dx * dx + dy * dy + dz * dz + eps2)
+            # math.sqrt, the same IEEE square root: numba-cuda lacks the numpy ufunc (the GPU ensemble calls this)
+            term = m[j] / math.sqrt(dx * dx + dy * dy + dz * dz + eps2)
             lane = (j - i - 1) & 3
             if lane == 0:
                 s0 += term

@@ -101,7 +101,7 @@ def _stumpff_large(z):
     cosh s - 1 and sinh s - s lose at most 3 bits). z > 1 (elliptic; at most pi^2 after the
     period reduction of :func:`setup`, i.e. two quarterings): quartered series and the identities.
     """
-    if not np.isfinite(z):
+    if not math.isfinite(z):  # math, not np: numba-cuda lacks the numpy ufunc (the GPU ensemble calls this)
         return np.nan, np.nan, np.nan, np.nan
     if z < 0.0:
         s = math.sqrt(-z)

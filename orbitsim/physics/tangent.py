@@ -19,7 +19,7 @@ the Kepler part) and democratic heliocentric (every pair with the star is) split
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
 from orbitsim._jit import jit
 
@@ -50,7 +50,7 @@ def tangent_accelerations(pos, m, G, eps2, dpos, dacc, skip):
             dy = pos[1, i] - pos[1, j]
             dz = pos[2, i] - pos[2, j]
             r2 = dx * dx + dy * dy + dz * dz + eps2
-            r = np.sqrt(r2)
+            r = math.sqrt(r2)  # math.sqrt: numba-cuda lacks the numpy sqrt ufunc (the GPU ensemble calls this)
             r3inv = 1.0 / (r2 * r)
             r5inv = 3.0 * r3inv / r2
             ddx = dpos[0, i] - dpos[0, j]

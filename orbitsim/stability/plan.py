@@ -12,6 +12,7 @@ same map.
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import json
 import math
@@ -48,6 +49,7 @@ class MapPlan(NamedTuple):
     #: the scheme (a name of orbitsim.ensemble.status.SCHEMES); the scenario document in ``doc`` names it
     #: too, so the fingerprint, which hashes ``doc``, already tells maps of two schemes apart
     integrator: str = "wisdom_holman"
+    device: str = "cpu"  #: "cpu": orbitsim.ensemble; "gpu": orbitsim.gpu.ensemble (one CUDA thread a pixel)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -130,10 +132,14 @@ def run_chunk(plan: MapPlan, index: int) -> ChunkResult:
     radii = None if plan.radii is None else np.tile(plan.radii, (m.shape[0], 1))
     dpos, dvel = random_initial_variation(m.shape[1], plan.seed)
     variation = (np.tile(dpos, (m.shape[0], 1, 1)), np.tile(dvel, (m.shape[0], 1, 1)))
+    run = functools.partial(run_ensemble, integrator=plan.integrator)
+    if plan.device == "gpu":  # make_plan let only the GPU's schemes with variational equations through
+        from orbitsim.gpu.ensemble import run_ensemble_gpu  # noqa: PLC0415 - lazy: loads numba-cuda
+
+        run = functools.partial(run_ensemble_gpu, scheme=plan.integrator)
     started = time.perf_counter()
-    result = run_ensemble(m, x, v, G=plan.G, dt=plan.dt, n_steps=plan.n_steps, t_start=plan.t_start,
-                          escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation,
-                          integrator=plan.integrator)
+    result = run(m, x, v, G=plan.G, dt=plan.dt, n_steps=plan.n_steps, t_start=plan.t_start,
+                 escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation)
     seconds = time.perf_counter() - started
     cols = result.indicators
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -145,18 +151,24 @@ def run_chunk(plan: MapPlan, index: int) -> ChunkResult:
 
 
 def fingerprint(plan: MapPlan) -> str:
-    """SHA-256 of everything the pixels' bits depend on (not the chunk size: a pixel's bits do not)."""
+    """SHA-256 of everything the pixels' bits depend on (not the chunk size: a pixel's bits do not).
+
+    The device is among them where it is the GPU (its pixels agree with the CPU's to round-off, not bit
+    for bit), so a CPU map is never finished on the GPU or the other way round; a CPU map's fingerprint
+    is what it was before the GPU existed."""
     record = {
         "doc": plan.doc, "axes": [(a.body, a.key, a.values.tolist(), a.log) for a in plan.axes], "G": plan.G,
         "dt": plan.dt, "t_start": plan.t_start, "n_steps": plan.n_steps, "escape": plan.escape_distance,
         "watch": plan.watch, "radii": None if plan.radii is None else plan.radii.tolist(),
         "barycentric": plan.barycentric, "seed": plan.seed,
     }
+    if plan.device != "cpu":
+        record["device"] = plan.device
     return hashlib.sha256(json.dumps(record, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float,
-              escape_distance: float | None, chunk: int, seed: int = 0) -> MapPlan:
+              escape_distance: float | None, chunk: int, seed: int = 0, device: str = "cpu") -> MapPlan:
     """Check that the ensemble can run ``scenario`` over ``axes`` up to ``t_end``; raise :class:`MapSpecError`.
 
     Every pixel's start state is built here once, so a pixel the scenario reader rejects (``e = 1.2``
@@ -171,6 +183,9 @@ def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float
     if name not in SCHEMES:
         raise MapSpecError(f"integrator {name!r}: a map runs an ensemble kernel, which exists for "
                            f"{', '.join(SCHEMES)} only (leapfrog4/6/8 are {{name: leapfrog, order: 4/6/8}})")
+    if device == "gpu" and name != "wisdom_holman":
+        raise MapSpecError(f"integrator {name!r}: a map on the GPU runs wisdom_holman only (its GPU kernel carries "
+                           f"the variational equations, for MEGNO); run this map without --device gpu")
     settings = dict(scenario.integrator_settings or {})
     if settings.get("coordinates", "jacobi") != "jacobi" or int(settings.get("corrector", 0) or 0) != 0:
         raise MapSpecError("integrator settings: the ensemble's Wisdom-Holman map is Jacobi coordinates without "
@@ -195,7 +210,7 @@ def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float
     plan = MapPlan(copy.deepcopy(doc), tuple(scenario.names), tuple(axes), float(scenario.G), float(scenario.dt),
                    float(scenario.t_start), n_steps, math.inf, watch,
                    None if scenario.radii is None else np.asarray(scenario.radii, dtype=np.float64),
-                   scenario.frame == "barycentric", int(chunk), int(seed), name)
+                   scenario.frame == "barycentric", int(chunk), int(seed), name, device)
     if len(plan.names) != len(doc["bodies"]):
         raise MapSpecError("a map needs every body in the scenario's bodies list (no ephemeris or generator)")
     farthest = 0.0

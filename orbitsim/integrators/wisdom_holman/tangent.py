@@ -203,6 +203,15 @@ def interaction_kick_tangent(jpos, jvel, djpos, djvel, m, G, eps2, h, weights, m
     # to Jacobi, in place: columns 1.. are the same arithmetic as the bodies' kick; column 0 (the centre of
     # mass) is not read, and megno_after_step rewrites the whole array
     inertial_to_jacobi(dacc, weights, dacc)
+    jacobi_term_tangent_kick(jpos, djpos, djvel, dacc, mu, h)
+
+
+@jit_inline
+def jacobi_term_tangent_kick(jpos, djpos, djvel, dacc, mu, h):
+    """The tangent kick of Jacobi bodies 1..N-1 by ``h``: ``h`` times the Jacobi-transformed tangent
+    accelerations ``dacc`` (3, N), plus, for i >= 2, the derivative of the Jacobi term
+    ``G M_i r'_i / |r'_i|^3`` (added first, as REBOUND). In place on ``djvel``; also the GPU ensemble's
+    (orbitsim.gpu.ensemble_kernels), so the two share these operations."""
     n = jpos.shape[1]
     for i in range(1, n):
         if i > 1:
