@@ -278,3 +278,27 @@ def watch_compiles(watch: CompileWatch) -> Any:
             watch.on_end(ev)
 
     return event.install_listener("numba:compile", _Listener())
+
+
+# -- CUDA (numba-cuda), for orbitsim.gpu only ---------------------------------------------------------
+# numba-cuda is imported inside these decorators, never here at module level: the CPU paths must not
+# load it. Callers have passed orbitsim.gpu.device.require_cuda() first (the one gate, and numpy's
+# row_stack shim). CUDA kernels compile on their first launch and are not cached on disk.
+
+
+def cuda_kernel(func: F) -> F:
+    """Compile ``func`` as a CUDA kernel, fastmath off. The GPU compiler still contracts a * b + c into
+    fused multiply-adds, so results are not the CPU's bits (docs/gpu.md)."""
+    from numba import cuda  # noqa: PLC0415 - lazy: loads numba-cuda, only for the GPU
+
+    return cuda.jit(fastmath=False)(func)
+
+
+def cuda_device(func: F) -> F:
+    """Compile ``func`` as a CUDA device function, inlined into its callers (NVVM's ``alwaysinline``
+    on hardware; the simulator calls it as Python)."""
+    from numba import cuda  # noqa: PLC0415 - lazy: loads numba-cuda, only for the GPU
+
+    if "simulator" in cuda.jit.__module__:  # Numba's CUDA simulator: its jit has no forceinline
+        return cuda.jit(device=True)(func)
+    return cuda.jit(device=True, forceinline=True, fastmath=False)(func)
