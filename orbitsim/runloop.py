@@ -170,6 +170,10 @@ class RunLoop:
         with stopper.critical():
             # known only once numba is set up; the choice without --threads is orbitsim.cores'
             self.sink.set_attrs(threads=int(self.sim.threads_used), threads_choice=self.sim.threads_choice)
+            if self.scenario.device == "gpu":  # only a GPU run says so: a CPU trace keeps its attributes
+                from orbitsim.gpu.device import device_name  # noqa: PLC0415 -- lazy: loads numba-cuda
+
+                self.sink.set_attrs(device="gpu", device_name=device_name())
             if self.history:  # where `run --from` changed the scheme or dt (orbitsim.checkpoint.switch)
                 self.sink.set_attrs(integrator_history=self.history)
             self.checkpoints.initial(self)
@@ -202,6 +206,8 @@ class RunLoop:
         from orbitsim.scenario_simulation import scenario_simulation  # noqa: PLC0415 -- lazy: loads yaml
 
         sc = self.scenario
+        if sc.device == "gpu":
+            return self._make_gpu_simulation()
         primary: str | int | None = None
         if sc.record_elements:
             primary = sc.elements_primary
@@ -222,6 +228,27 @@ class RunLoop:
             restore_variational(sim, state)  # the tangent vector is the bodies', whatever the scheme
         else:
             restore_state(sim, state)
+        return sim
+
+    def _make_gpu_simulation(self) -> Any:
+        """The run on the GPU (:class:`orbitsim.gpu.simulation.GPUSimulation`): from the scenario's bodies, or
+        a checkpoint's state, sent to the device once restored."""
+        from orbitsim.checkpoint.state import restore_state  # noqa: PLC0415 -- lazy: loads h5py
+        from orbitsim.gpu.simulation import GPUSimulation  # noqa: PLC0415 -- lazy: loads numba-cuda
+
+        sc = self.scenario
+        if self.start_point is None:
+            return GPUSimulation(sc.masses, sc.positions, sc.velocities, sc.integrator, sc.grid_dt, sc.G, sc.softening,
+                                 sc.t_start, sc.run_settings)
+        ckpt = self.start_point.checkpoint
+        state = ckpt.state
+        sim = GPUSimulation(sc.masses, state.pos.T, state.vel.T, sc.integrator, sc.grid_dt, sc.G, sc.softening,
+                            ckpt.t0, sc.run_settings)
+        if self.start_point.rebuild:
+            sim.steps_done = ckpt.steps_done  # a new scheme: its work is made fresh, the accelerations evaluated
+        else:
+            restore_state(sim, state)
+            sim.upload()
         return sim
 
     def _take(self, chunk: SampleChunk) -> None:

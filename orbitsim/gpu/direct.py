@@ -102,7 +102,7 @@ def direct_kernels(tile: int | None = None) -> DirectKernels:
     return DirectKernels(tile, *_build(tile))
 
 
-def _build(tile: int) -> tuple[Any, ...]:  # noqa: C901, PLR0915 - one closure per kernel, all over `tile`
+def _build(tile: int) -> tuple[Any, ...]:
     """Compile-on-launch kernels over the constant ``tile`` (the shared arrays' size must be constant)."""
 
     @cuda_device

@@ -22,9 +22,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from orbitsim.gpu.direct import SAMPLE_ROWS, DirectKernels, cuda, direct_kernels
-
-#: The schemes the GPU runs, in the registry's order (the rest are refused, in one line, by name).
-GPU_SCHEMES = ("euler", "semi_implicit_euler", "verlet", "leapfrog", "rk4", "leapfrog4", "leapfrog6", "leapfrog8")
+from orbitsim.gpu.support import GPU_SCHEMES
 
 #: The leapfrog family: drift-kick-drift compositions driven by their record's tables.
 _COMPOSITIONS = ("leapfrog", "leapfrog4", "leapfrog6", "leapfrog8")
