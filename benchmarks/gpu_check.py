@@ -38,7 +38,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the project, where it is not installed
 
-from orbitsim.gpu.device import device_name, require_cuda  # noqa: E402 - after the path
+from orbitsim.gpu.device import device_name, require_cuda
 
 Figure = dict[str, Any]
 

@@ -20,12 +20,12 @@ import pytest
 if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":  # pragma: no cover - a guard, not a path
     raise RuntimeError("run under Numba's CUDA simulator: tests/gpu/test_gpu_simulator.py does")
 
-from orbitsim.gpu.direct import SIM_TILE, direct_kernels  # noqa: E402 - after the guard
-from orbitsim.gpu.stepping import DeviceSystem  # noqa: E402
-from orbitsim.gpu.support import GPU_SCHEMES  # noqa: E402
-from orbitsim.physics.diagnostics import kinetic_energy, potential_energy  # noqa: E402
-from orbitsim.physics.gravity import accelerations, force_scratch  # noqa: E402
-from orbitsim.simulation import Simulation  # noqa: E402
+from orbitsim.gpu.direct import SIM_TILE, direct_kernels
+from orbitsim.gpu.stepping import DeviceSystem
+from orbitsim.gpu.support import GPU_SCHEMES
+from orbitsim.physics.diagnostics import kinetic_energy, potential_energy
+from orbitsim.physics.gravity import accelerations, force_scratch
+from orbitsim.simulation import Simulation
 
 RTOL = 1e-13  # FP64 on both sides, not bitwise (order of the sum, FMA, rsqrt): see the module docstring
 

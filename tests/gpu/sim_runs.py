@@ -19,8 +19,8 @@ from click.testing import CliRunner
 if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":  # pragma: no cover - a guard, not a path
     raise RuntimeError("run under Numba's CUDA simulator: tests/gpu/test_gpu_simulator.py does")
 
-from orbitsim.cli.main import cli  # noqa: E402 - after the guard
-from orbitsim.io.trace import read_trace  # noqa: E402
+from orbitsim.cli.main import cli
+from orbitsim.io.trace import read_trace
 
 RTOL = 1e-13  # FP64, not bitwise (order of the sum, FMA, rsqrt): sim_kernels.py's module docstring
 ROOT = Path(__file__).resolve().parents[2]
