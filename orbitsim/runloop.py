@@ -207,7 +207,9 @@ class RunLoop:
 
         sc = self.scenario
         if sc.device == "gpu":
-            return self._make_gpu_simulation()
+            from orbitsim.gpu.simulation import gpu_simulation  # noqa: PLC0415 -- lazy: loads numba-cuda
+
+            return gpu_simulation(sc, self.start_point)
         primary: str | int | None = None
         if sc.record_elements:
             primary = sc.elements_primary
@@ -228,27 +230,6 @@ class RunLoop:
             restore_variational(sim, state)  # the tangent vector is the bodies', whatever the scheme
         else:
             restore_state(sim, state)
-        return sim
-
-    def _make_gpu_simulation(self) -> Any:
-        """The run on the GPU (:class:`orbitsim.gpu.simulation.GPUSimulation`): from the scenario's bodies, or
-        a checkpoint's state, sent to the device once restored."""
-        from orbitsim.checkpoint.state import restore_state  # noqa: PLC0415 -- lazy: loads h5py
-        from orbitsim.gpu.simulation import GPUSimulation  # noqa: PLC0415 -- lazy: loads numba-cuda
-
-        sc = self.scenario
-        if self.start_point is None:
-            return GPUSimulation(sc.masses, sc.positions, sc.velocities, sc.integrator, sc.grid_dt, sc.G, sc.softening,
-                                 sc.t_start, sc.run_settings)
-        ckpt = self.start_point.checkpoint
-        state = ckpt.state
-        sim = GPUSimulation(sc.masses, state.pos.T, state.vel.T, sc.integrator, sc.grid_dt, sc.G, sc.softening,
-                            ckpt.t0, sc.run_settings)
-        if self.start_point.rebuild:
-            sim.steps_done = ckpt.steps_done  # a new scheme: its work is made fresh, the accelerations evaluated
-        else:
-            restore_state(sim, state)
-            sim.upload()
         return sim
 
     def _take(self, chunk: SampleChunk) -> None:

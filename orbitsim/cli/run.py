@@ -113,16 +113,13 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
       orbitsim run --from long.h5 --steps 50000
       orbitsim run --from long.h5 --integrator wisdom_holman --dt 0.05 --steps 50000
       orbitsim run two_body_circular --backward --t-end 10
-      orbitsim run plummer_16k --device gpu --steps 10
     """
     for first, second in (("steps", "t_end"), ("every", "interval")):
         if locals()[first] is not None and locals()[second] is not None:
             raise click.UsageError(f"give only one of --{first} or --{second.replace('_', '-')}")
     checkpoints = {"checkpoint_every": checkpoint_every, "checkpoint_seconds": checkpoint_seconds}
     if from_trace is not None:
-        if device is not None:  # the stored run's device goes on; a continuation elsewhere would be a new run
-            raise click.UsageError("--from continues the stored run on its own device: drop --device")
-        fixed = {"every": every, "interval": interval, "positions": positions}
+        fixed = {"every": every, "interval": interval, "positions": positions, "device": device}
         change = {"integrator": integrator, "dt": dt, "backward": backward}
         _extend(from_trace, scenario, output, change, steps, t_end, checkpoints, threads, force, quiet, fixed)
         return
@@ -228,9 +225,8 @@ def _apply_overrides(scenario: Any, overrides: dict[str, Any]) -> Any:
     try:
         return scenario.with_overrides(**overrides)
     except ScenarioError as err:
-        if overrides.get("device") == "gpu" and "(device: gpu)" in err.reason:  # what the GPU does not carry
-            fail(f"--device gpu: {err.reason}")
-        option = _OPTION_FOR_KEY.get(err.key or "")
+        gpu = overrides.get("device") == "gpu" and "(device: gpu)" in err.reason  # what the GPU does not carry
+        option = "--device" if gpu else _OPTION_FOR_KEY.get(err.key or "")
         if option is None:
             raise
         value = overrides.get(option[2:].replace("-", "_"))
@@ -356,8 +352,6 @@ class _LongRunNote:
     def _warn_if_long(self, steps: int) -> None:
         from orbitsim.estimate import LONG_RUN_S, SLOW_STEP_S, estimate_time
 
-        if self.scenario.device == "gpu":  # the estimate times this machine's CPU, not the GPU
-            return
         estimate = estimate_time(self.scenario, threads=self.threads, steps=steps)
         if estimate is None:
             return

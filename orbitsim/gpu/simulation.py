@@ -32,7 +32,7 @@ from orbitsim.integrators.registry import get_integrator
 from orbitsim.results import SampleBuffers, SampleChunk
 from orbitsim.sampling import ExplicitPlan, SamplePlan, SimulationError, TargetWindow, next_budget
 
-__all__ = ["GPUSimulation"]
+__all__ = ["GPUSimulation", "gpu_simulation"]
 
 #: Largest sample buffer of one call (as :data:`orbitsim.simulation.MAX_BUFFER_BYTES`).
 MAX_BUFFER_BYTES = 32 * 2**20
@@ -229,3 +229,23 @@ def _as_state(masses: Any, positions: Any, velocities: Any) -> tuple[np.ndarray,
     if np.any(m < 0.0):
         raise SimulationError("masses must be >= 0")
     return m.copy(), np.array(x.T, order="C"), np.array(v.T, order="C")
+
+
+def gpu_simulation(scenario: Any, start: Any = None) -> GPUSimulation:
+    """The run of ``scenario`` on the GPU, from its bodies at ``t_start``, or from ``start``'s checkpoint
+    (a :class:`~orbitsim.checkpoint.sinks.RunStart`: its state restored, then sent to the device)."""
+    sc = scenario
+    if start is None:
+        return GPUSimulation(sc.masses, sc.positions, sc.velocities, sc.integrator, sc.grid_dt, sc.G, sc.softening,
+                             sc.t_start, sc.run_settings)
+    from orbitsim.checkpoint.state import restore_state  # noqa: PLC0415 - lazy: loads h5py, a continuation only
+
+    ckpt = start.checkpoint
+    sim = GPUSimulation(sc.masses, ckpt.state.pos.T, ckpt.state.vel.T, sc.integrator, sc.grid_dt, sc.G, sc.softening,
+                        ckpt.t0, sc.run_settings)
+    if start.rebuild:
+        sim.steps_done = ckpt.steps_done  # a new scheme (`run --from --integrator`): accelerations evaluated afresh
+    else:
+        restore_state(sim, ckpt.state)
+        sim.upload()
+    return sim

@@ -141,7 +141,7 @@ def test_run_from_refuses_a_device_change(tmp_path: Path) -> None:
     out = tmp_path / "o.h5"
     assert invoke("run", str(path), "-o", str(out), "-q")[0] == 0
     code, output = invoke("run", "--from", str(out), "--steps", "5", "--device", "gpu")
-    assert code == 2 and "--from continues the stored run on its own device: drop --device" in output
+    assert code == 2 and "--from continues the stored run, whose settings are fixed: drop --device" in output
 
 
 def test_every_gpu_scheme_is_a_registered_fixed_step_scheme() -> None:
