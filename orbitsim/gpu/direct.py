@@ -21,7 +21,7 @@ is not a correctly rounded ``1 / sqrt``. They agree to round-off (tests/gpu/).
 A sample is reduced on the device: :func:`DirectKernels.sample_rows` writes each body's kinetic
 energy, potential row sum, momentum and angular momentum (and whether its state is finite) into a
 (9, N) array, and :func:`DirectKernels.reduce_rows`, one block, adds those rows in a fixed order
-(thread t takes bodies t, t + tile, ..., then a tree in shared memory): deterministic, no atomics,
+(thread t takes bodies t, t + tile, ..., then one tree in shared memory for the nine rows): deterministic, no atomics,
 and only nine numbers come back to the host. The potential uses the same tiles as the force:
 U = -G/2 sum_i m_i sum_{j != i} m_j / r_ij.
 
@@ -95,10 +95,11 @@ class DirectKernels(NamedTuple):
 @functools.cache
 def direct_kernels(tile: int | None = None) -> DirectKernels:
     """The kernels with ``tile`` bodies per shared-memory tile (default :func:`default_tile`); a power of
-    two (the sample reduction halves it). Compiled on first launch, once per process and tile."""
+    two (the sample reduction halves it) of at least 16 (one thread writes each of the nine sums).
+    Compiled on first launch, once per process and tile."""
     tile = default_tile() if tile is None else int(tile)
-    if tile < 1 or tile & (tile - 1):
-        raise ValueError(f"tile must be a power of two, got {tile}")
+    if tile < 16 or tile & (tile - 1):
+        raise ValueError(f"tile must be a power of two >= 16, got {tile}")
     return DirectKernels(tile, *_build(tile))
 
 
@@ -213,26 +214,24 @@ def _build(tile: int) -> tuple[Any, ...]:
 
     @cuda_kernel
     def reduce_rows(rows, G, out):
-        partial = cuda.shared.array(tile, float64)
+        partial = cuda.shared.array((SAMPLE_ROWS, tile), float64)  # 18 KiB at tile 256
         n = rows.shape[1]
         t = cuda.threadIdx.x
         for q in range(SAMPLE_ROWS):
             s = 0.0
             for i in range(t, n, tile):
                 s += rows[q, i]
-            partial[t] = s
+            partial[q, t] = s
+        cuda.syncthreads()
+        width = tile // 2
+        while width > 0:  # one tree for all nine rows: one barrier a level
+            if t < width:
+                for q in range(SAMPLE_ROWS):
+                    partial[q, t] += partial[q, t + width]
             cuda.syncthreads()
-            width = tile // 2
-            while width > 0:
-                if t < width:
-                    partial[t] += partial[t + width]
-                cuda.syncthreads()
-                width //= 2
-            if t == 0:
-                out[q] = partial[0]
-            cuda.syncthreads()
-        if t == 0:
-            out[1] = -0.5 * G * out[1]
+            width //= 2
+        if t < SAMPLE_ROWS:
+            out[t] = -0.5 * G * partial[1, 0] if t == 1 else partial[t, 0]
 
     @cuda_kernel
     def kick(vel, acc, h):

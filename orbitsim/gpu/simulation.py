@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitsim.gpu.device import simulated
 from orbitsim.gpu.stepping import DeviceSystem
 from orbitsim.gpu.support import GPU_SCHEMES
 from orbitsim.integrators.registry import get_integrator
@@ -37,9 +38,12 @@ __all__ = ["GPUSimulation", "gpu_simulation"]
 #: Largest sample buffer of one call (as :data:`orbitsim.simulation.MAX_BUFFER_BYTES`).
 MAX_BUFFER_BYTES = 32 * 2**20
 
-#: Pair interactions the first call may take: ~1 ms on an H100 (issue 30: 5e11 pairs/s at large N),
-#: a few seconds under the simulator at test sizes; the budget then follows the measured call time.
+#: Pair interactions the first call may take: ~1 ms on an H100 (issue 30: 5e11 pairs/s at large N); the
+#: budget then follows the measured call time (:func:`~orbitsim.sampling.next_budget`).
 FIRST_CALL_PAIRS = 5e8
+
+#: The same under Numba's CUDA simulator, which manages ~1e4 pairs/s: a first call of ~0.2 s, as on hardware.
+SIM_FIRST_CALL_PAIRS = 2e3
 
 
 class GPUSimulation:
@@ -168,7 +172,8 @@ class GPUSimulation:
             raise SimulationError("sample steps must increase and start at or after the current step")
         self.diverged = False
         buffers = SampleBuffers(targets.max_samples(), self.n, record_positions)
-        budget = max(1, int(FIRST_CALL_PAIRS // max(1, self.n * self.n * self.spec.force_evals)))
+        first = SIM_FIRST_CALL_PAIRS if simulated() else FIRST_CALL_PAIRS
+        budget = max(1, int(first // max(1, self.n * self.n * self.spec.force_evals)))
         while targets.pending.size:
             call_targets, record = targets.plan_call(self.steps_done, budget)
             start = time.perf_counter()

@@ -58,16 +58,18 @@ def test_accelerations_match_the_cpu(n: int, softening: float) -> None:
 
 
 def test_the_tile_size_does_not_change_a_bit() -> None:
-    """Each thread sums its j in index order whatever the tile, so tiles of 8 and 32 give the same bits."""
+    """Each thread sums its j in index order whatever the tile, so tiles of 16 (two full tiles and a partial
+    one at N = 40) and 32 give the same bits; the sample's sums are a tree over the tile, so only close."""
     m, x, v = system(40)
-    a8 = DeviceSystem(m, x, v, "verlet", 1.0, 1e-4, tile=8).download()[2]
-    a32 = DeviceSystem(m, x, v, "verlet", 1.0, 1e-4, tile=32).download()[2]
-    assert np.array_equal(a8, a32)
+    s16, s32 = (DeviceSystem(m, x, v, "verlet", 1.0, 1e-4, tile=tile) for tile in (16, 32))
+    assert np.array_equal(s16.download()[2], s32.download()[2])
+    assert abs(s16.sample().potential / s32.sample().potential - 1.0) < RTOL
 
 
 def test_a_tile_must_be_a_power_of_two() -> None:
-    with pytest.raises(ValueError, match="power of two"):
-        direct_kernels(24)
+    for tile in (24, 8):
+        with pytest.raises(ValueError, match="power of two >= 16"):
+            direct_kernels(tile)
 
 
 @pytest.mark.parametrize("n", [8, 40])
@@ -84,13 +86,14 @@ def test_sample_sums_match_the_cpu(n: int) -> None:
     assert sums.non_finite == 0
 
 
+# The simulator's threads compute with numpy scalars, which warn (inf - inf) where hardware is silent.
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
 def test_a_non_finite_body_is_counted(bad: float) -> None:
     m, x, v = system(8)
     x[1, 5] = bad
     v[0, 2] = bad
-    with np.errstate(invalid="ignore"):  # the simulator's numpy scalars warn where hardware is silent
-        assert DeviceSystem(m, x, v, "verlet", 1.0, 1e-2).sample().non_finite == 2
+    assert DeviceSystem(m, x, v, "verlet", 1.0, 1e-2).sample().non_finite == 2
 
 
 #: Steps per scheme: the 9- and 17-stage compositions take one (each stage is a force launch, slow here).

@@ -87,6 +87,25 @@ def test_a_gpu_run_continues_from_its_final_state_bit_for_bit(tmp_path: Path) ->
     assert np.array_equal(ext.positions, one.positions) and np.array_equal(ext.energy, one.energy)
 
 
+def test_an_interrupted_gpu_run_resumes_on_the_gpu_bit_for_bit(tmp_path: Path) -> None:
+    """Stopped after its second call, with checkpoints every 5 steps: `orbitsim resume` restores the state
+    copied back from the device, sends it back, and ends with the bits of an uninterrupted GPU run."""
+    from orbitsim.runner import run_scenario
+    from orbitsim.scenario import load_scenario
+
+    sc = load_scenario(scenario(tmp_path, steps=20)).with_overrides(device="gpu", checkpoint_every=5)
+    polls = iter(range(1000))
+    summary = run_scenario(sc, tmp_path / "r.h5", stop=lambda: next(polls) >= 2, handle_signals=False)
+    assert summary.status == "interrupted" and summary.resumable and 0 < summary.steps_done < 20
+    run("resume", str(tmp_path / "r.h5"), "-q")
+    run("run", str(scenario(tmp_path, steps=20, name="w.yaml")), "-o", str(tmp_path / "one.h5"), "--device", "gpu",
+        "-q", "--checkpoint-every", "5")
+    resumed, one = read_trace(tmp_path / "r.h5"), read_trace(tmp_path / "one.h5")
+    assert resumed.attrs["status"] == "complete" and resumed.attrs["device"] == "gpu"
+    assert np.array_equal(resumed.step, one.step)
+    assert np.array_equal(resumed.positions, one.positions) and np.array_equal(resumed.energy, one.energy)
+
+
 def test_gpu_check_quick_prints_one_json_line_per_figure(tmp_path: Path) -> None:
     """benchmarks/gpu_check.py as a GPU machine runs it, with h5py, yaml and click unavailable."""
     out = tmp_path / "check.jsonl"
