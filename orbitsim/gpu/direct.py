@@ -33,14 +33,20 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from typing import Any, NamedTuple
 
 from numba import float64
+from numba.core.errors import NumbaPerformanceWarning
 
 from orbitsim._jit import cuda_device, cuda_kernel
 from orbitsim.gpu.device import require_cuda, simulated
 
 cuda = require_cuda()
+
+# A grid of few blocks is what a small N needs (one block per 256 bodies); numba-cuda would warn of low
+# occupancy at every launch configuration below 128 blocks, i.e. on stderr of every run below N = 32,768.
+warnings.filterwarnings("ignore", message="Grid size .* under-utilization", category=NumbaPerformanceWarning)
 
 #: Bodies per shared-memory tile and threads per block on hardware (issue 30's measured kernel: 256).
 TILE = 256
