@@ -288,7 +288,7 @@ def watch_compiles(watch: CompileWatch) -> Any:
 
 def cuda_kernel(func: F) -> F:
     """Compile ``func`` as a CUDA kernel, fastmath off. The GPU compiler still contracts a * b + c into
-    fused multiply-adds, so results are not the CPU's bits (docs/map.md, "On a GPU")."""
+    fused multiply-adds, so results are not the CPU's bits (docs/gpu.md; maps: docs/map.md, "On a GPU")."""
     from numba import cuda  # noqa: PLC0415 - lazy: loads numba-cuda, only for the GPU
 
     return cuda.jit(fastmath=False)(func)

@@ -132,9 +132,10 @@ def estimate_time(scenario: Scenario, *, threads: int | None = None, steps: int 
         None for a run below :data:`ESTIMATE_MIN_WORK` whose steps are below :data:`SLOW_STEP_MIN_WORK`
         (not measured at all: it cannot matter), for
         a thread count the run will refuse, when the subsample diverged while being timed, or for
-        an adaptive scheme (its step count is not known before it runs).
+        an adaptive scheme (its step count is not known before it runs), or a run on the GPU (this
+        times the CPU's kernels).
     """
-    if scenario.adaptive:
+    if scenario.adaptive or scenario.device == "gpu":
         return None
     from orbitsim._jit import set_num_threads  # noqa: PLC0415 -- lazy: loads numba
     from orbitsim.physics.gravity import PARALLEL_MIN_N  # noqa: PLC0415 -- lazy: loads numba

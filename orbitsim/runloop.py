@@ -170,6 +170,10 @@ class RunLoop:
         with stopper.critical():
             # known only once numba is set up; the choice without --threads is orbitsim.cores'
             self.sink.set_attrs(threads=int(self.sim.threads_used), threads_choice=self.sim.threads_choice)
+            if self.scenario.device == "gpu":  # only a GPU run says so: a CPU trace keeps its attributes
+                from orbitsim.gpu.device import device_name  # noqa: PLC0415 -- lazy: loads numba-cuda
+
+                self.sink.set_attrs(device="gpu", device_name=device_name())
             if self.history:  # where `run --from` changed the scheme or dt (orbitsim.checkpoint.switch)
                 self.sink.set_attrs(integrator_history=self.history)
             self.checkpoints.initial(self)
@@ -202,6 +206,10 @@ class RunLoop:
         from orbitsim.scenario_simulation import scenario_simulation  # noqa: PLC0415 -- lazy: loads yaml
 
         sc = self.scenario
+        if sc.device == "gpu":
+            from orbitsim.gpu.simulation import gpu_simulation  # noqa: PLC0415 -- lazy: loads numba-cuda
+
+            return gpu_simulation(sc, self.start_point)
         primary: str | int | None = None
         if sc.record_elements:
             primary = sc.elements_primary

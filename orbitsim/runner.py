@@ -146,8 +146,14 @@ def run_scenario(scenario: Scenario, output: Path | str | None = None, *, force:
         If recorded positions would not fit on the disk.
     SimulationError
         If the simulation rejects the input (nothing is written).
+    GPUUnavailableError
+        ``device: gpu`` without a usable CUDA device or without numba-cuda (nothing is written).
     """
     output = Path(output) if output is not None else default_output(scenario)
+    if scenario.device == "gpu":  # no usable GPU: one line, before anything at the output is touched
+        from orbitsim.gpu.device import require_cuda  # noqa: PLC0415 -- lazy: loads numba-cuda, a GPU run only
+
+        require_cuda()
     _check_path(scenario, output)
     with hold_output(output):  # before anything at or beside the output is looked at or touched
         return _run_locked(scenario, output, force, progress, threads, on_chunk, stop, handle_signals, start,

@@ -9,6 +9,7 @@ from typing import Any
 import click
 
 from orbitsim.cli.errors import EXIT_FAILURE, EXIT_USAGE, fail, reports_errors
+from orbitsim.cli.options import device_option
 
 
 @click.command("batch")
@@ -30,9 +31,10 @@ from orbitsim.cli.errors import EXIT_FAILURE, EXIT_USAGE, fail, reports_errors
 @click.option("--skip-invalid", is_flag=True,
               help="Run the valid cases and list each invalid one, with its error, in the summary "
                    "(status `invalid`) and exit 1 (default: an invalid case stops the sweep, exit 2).")
+@device_option()
 @reports_errors
 def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers: int | None,
-            threads: int | None, resume: bool, progress: bool, skip_invalid: bool) -> None:
+            threads: int | None, resume: bool, progress: bool, skip_invalid: bool, device: str | None) -> None:
     """Run every case of a sweep and write OUTDIR/runs/<run-id>.h5 per run,
     OUTDIR/summary.csv and OUTDIR/summary.h5.
 
@@ -70,6 +72,8 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
         sweep = load_sweep(sweep_file, skip_invalid=skip_invalid)
     except SweepError as err:
         fail(str(err), EXIT_USAGE)
+    if device is not None:
+        sweep = _on_device(sweep, device)
     target = Path(outdir) if outdir else Path("out") / sweep.name
     bar = _Bar(progress)
     # Held past run_sweep, so that a Ctrl-C while the error line below is printed is ignored too.
@@ -96,6 +100,28 @@ def command(sweep_file: str, outdir: str | None, scheduler: str | None, workers:
         problems.append(f"{len(sweep.invalid)} invalid case(s) skipped ({_invalid_list(sweep.invalid)})")
     if problems:
         fail(f"{' and '.join(problems)}; the errors are in the summary", EXIT_FAILURE)
+
+
+def _on_device(sweep: Any, device: str) -> Any:
+    """The sweep with every case on ``device`` (``--device``): a case the GPU does not carry is refused in
+    one line, and without a usable GPU the gate's line (:func:`orbitsim.gpu.device.require_cuda`), before
+    anything is written. A case's run id follows its scenario, so a GPU run never reuses a CPU trace."""
+    from dataclasses import replace
+
+    from orbitsim.scenario import ScenarioError
+
+    cases = []
+    for case in sweep.cases:
+        try:
+            scenario = case.scenario.with_overrides(device=device)
+        except ScenarioError as err:
+            fail(f"--device {device}: case {case.index}: {err.reason}", EXIT_USAGE)
+        cases.append(replace(case, scenario=scenario, sha256=scenario.sha256))
+    if device == "gpu":
+        from orbitsim.gpu.device import require_cuda
+
+        require_cuda()
+    return replace(sweep, cases=tuple(cases))
 
 
 def _interrupted(outcome: Any, signum: int = signal.SIGINT) -> str:

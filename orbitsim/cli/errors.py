@@ -55,6 +55,7 @@ USER_ERRORS: tuple[tuple[str, str], ...] = (
     ("orbitsim.sampling", "SimulationError"),  # re-exported by orbitsim.simulation
     ("orbitsim.integrators.registry", "UnknownIntegratorError"),
     ("orbitsim.io.schema", "OutputError"),  # re-exported by orbitsim.runner; OutputBusyError is one
+    ("orbitsim.gpu.device", "GPUUnavailableError"),  # --device gpu without a usable GPU
 )
 
 F = TypeVar("F", bound=Callable[..., Any])

@@ -179,6 +179,15 @@ def quiet_option() -> Decorator:
                         help="Print nothing but errors (no progress bar, no summary). Example: -q")
 
 
+def device_option() -> Decorator:
+    """--device cpu|gpu: where the runs step (overrides the scenario's ``device:``); numba-cuda is loaded
+    only for gpu (docs/gpu.md)."""
+    return click.option("--device", type=click.Choice(["cpu", "gpu"]), default=None,
+                        help="Run on the CPU or on one CUDA GPU (overrides the scenario's device:, default cpu). "
+                             "The GPU runs the fixed-step schemes with direct-sum gravity; anything else is refused "
+                             "in one line (docs/gpu.md). Example: --device gpu")
+
+
 def threads_option(*, free_cores_default: bool = True) -> Decorator:
     """--threads N: Numba threads; by default one per core other processes leave free
     (:mod:`orbitsim.cores`), or with ``free_cores_default=False`` (``bench``) all of them."""

@@ -15,6 +15,7 @@ from orbitsim.cli.options import (
     FINITE_POSITIVE,
     POSITIVE_TIME,
     check_trace_output,
+    device_option,
     force_option,
     output_option,
     quiet_option,
@@ -74,6 +75,7 @@ _FIXED_BY_FROM = ("every", "interval", "positions")
                    "--steps N more steps, or to --t-end T; with --integrator, --dt or --backward it continues with "
                    "that scheme or step (the trace records the change). Replaces TRACE.h5 (atomically, once done) "
                    "unless -o names another file. Example: --from out.h5 --steps 100000")
+@device_option()
 @threads_option()
 @force_option()
 @quiet_option()
@@ -81,7 +83,7 @@ _FIXED_BY_FROM = ("every", "interval", "positions")
 def command(scenario: str | None, output: str | None, integrator: str | None, dt: float | str | None, backward: bool,
             steps: int | None, t_end: float | str | None, every: int | None, interval: float | str | None,
             positions: bool | None, checkpoint_every: int | None, checkpoint_seconds: float | None,
-            from_trace: str | None, threads: int | None, force: bool, quiet: bool) -> None:
+            from_trace: str | None, device: str | None, threads: int | None, force: bool, quiet: bool) -> None:
     """Run SCENARIO (a YAML file or a bundled name) and write its HDF5 trace.
 
     Options override the file. Prints a summary: steps, wall time, steps/s, max |dE/E|. A
@@ -117,7 +119,7 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
             raise click.UsageError(f"give only one of --{first} or --{second.replace('_', '-')}")
     checkpoints = {"checkpoint_every": checkpoint_every, "checkpoint_seconds": checkpoint_seconds}
     if from_trace is not None:
-        fixed = {"every": every, "interval": interval, "positions": positions}
+        fixed = {"every": every, "interval": interval, "positions": positions, "device": device}
         change = {"integrator": integrator, "dt": dt, "backward": backward}
         _extend(from_trace, scenario, output, change, steps, t_end, checkpoints, threads, force, quiet, fixed)
         return
@@ -125,7 +127,7 @@ def command(scenario: str | None, output: str | None, integrator: str | None, dt
         raise click.UsageError("missing argument 'SCENARIO' (or give --from TRACE.h5 to extend a run)")
     loaded = _rebound_or_yaml(scenario, steps, t_end)
     overrides = {"integrator": integrator, "dt": dt, "steps": steps, "t_end": t_end, "every": every,
-                 "interval": interval, "record_positions": positions, **checkpoints}
+                 "interval": interval, "record_positions": positions, "device": device, **checkpoints}
     chosen = _apply_overrides(loaded, overrides)
     if backward:
         chosen = _backward(chosen)
@@ -223,7 +225,8 @@ def _apply_overrides(scenario: Any, overrides: dict[str, Any]) -> Any:
     try:
         return scenario.with_overrides(**overrides)
     except ScenarioError as err:
-        option = _OPTION_FOR_KEY.get(err.key or "")
+        gpu = overrides.get("device") == "gpu" and "(device: gpu)" in err.reason  # what the GPU does not carry
+        option = "--device" if gpu else _OPTION_FOR_KEY.get(err.key or "")
         if option is None:
             raise
         value = overrides.get(option[2:].replace("-", "_"))

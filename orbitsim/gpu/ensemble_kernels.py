@@ -29,7 +29,7 @@ reasons and orbit tracking (:mod:`orbitsim.ensemble.kernels`), the energy terms
 Agreement: not bitwise. NVVM contracts multiply-adds into FMAs and ``rsqrt`` rounds differently from
 ``G / (r2 sqrt(r2))``, so a GPU system agrees with the CPU ensemble to ~1e-13 relative over short runs
 (tests/gpu_ensemble/, under Numba's CUDA simulator, which has neither FMA nor rsqrt and so
-tests the operations; ``benchmarks/gpu_check_ensemble.py`` measures the real device). A chaotic system
+tests the operations; ``benchmarks/gpu_check.py`` measures the real device). A chaotic system
 amplifies any round-off, so over long runs chaotic pixels differ in their digits, not their verdict.
 
 Statuses as on the CPU (:mod:`orbitsim.ensemble.status`): each thread stops its own system at the end of
@@ -78,7 +78,7 @@ if simulated():
     def rsqrt(x):
         """1 / sqrt(x) (the simulator's stand-in for libdevice.rsqrt)."""
         return np.float64(1.0) / np.float64(math.sqrt(x))
-else:  # pragma: no cover - hardware only (benchmarks/gpu_check_ensemble.py)
+else:  # pragma: no cover - hardware only (benchmarks/gpu_check.py)
     from numba.cuda.libdevice import rsqrt
 
 

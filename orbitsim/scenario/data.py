@@ -84,6 +84,9 @@ class ScenarioData:
     chaos : ChaosConfig or None
         ``output.chaos``: record MEGNO and the mLCE at every sample, from this initial variation
         (:mod:`orbitsim.scenario.chaos`); None for a run without the variational equations.
+    device : str
+        ``device``: ``cpu`` (the default) or ``gpu``, one CUDA GPU through numba-cuda
+        (:mod:`orbitsim.gpu`; what it runs: :mod:`orbitsim.gpu.support`).
     """
 
     name: str
@@ -115,6 +118,7 @@ class ScenarioData:
     t_start: float = 0.0  # time of step 0: sample n is at t_start + n * dt (orbitsim.scenario.timing)
     integrator_state: dict[str, Any] | None = None  # a scheme's own coordinates (orbitsim.scenario.integrator_state)
     chaos: Any = None  # output.chaos: a ChaosConfig (orbitsim.scenario.chaos), or None
+    device: str = "cpu"  # where the run steps: cpu, or gpu (orbitsim.gpu)
 
     # -- derived quantities ------------------------------------------------------------------
 

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from orbitsim.data import SCENARIOS, bundled_dir, bundled_files
+from orbitsim.gpu.support import DEVICES
 from orbitsim.integrators.rebound_names import rebound_note
 from orbitsim.scenario.bodies import BodySet, check_coincident, read_bodies, shift_to_barycentre
 from orbitsim.scenario.direction import check_adaptive_t_end, check_dt, check_t_end
@@ -30,7 +31,7 @@ __all__ = ["TOP_KEYS", "bundled_scenarios", "config_dir", "load_scenario", "rebo
 
 TOP_KEYS = ("name", "description", "units", "G", "integrator", "dt", "t_start", "steps", "t_end", "output", "softening",
             "frame", "bodies", "ephemeris", "generator", "events", "forces", "integrator_state",
-            "angles")  # angles: read with the bodies (orbitsim.scenario.bodies)
+            "angles", "device")  # angles: read with the bodies (orbitsim.scenario.bodies)
 OUTPUT_KEYS = ("every", "interval", "positions", "checkpoint", "elements", "primary", "chaos")
 CHECKPOINT_KEYS = ("every", "seconds")
 #: Characters a REBOUND file's stem may not bring into a scenario name (which becomes a file name).
@@ -236,6 +237,7 @@ def _build(doc: Any, source: str, default_name: str, given: BodySet | None = Non
         steps = resolve_steps(t_end, dt, t_start)[0]
     softening = top.number("softening", 0.0, minimum=0.0)
     frame = top.string("frame", "as_given", choices=FRAMES)
+    device = top.string("device", "cpu", choices=list(DEVICES))
     name = top.string("name", default_name)
     description = top.string("description", "")
     every = output.integer("every", None, minimum=1, steps=True)
@@ -262,7 +264,8 @@ def _build(doc: Any, source: str, default_name: str, given: BodySet | None = Non
                         checkpoint_every=checkpoint_every, checkpoint_seconds=checkpoint_seconds, radii=radii,
                         events=events, record_elements=elements, elements_primary=primary,
                         forces=top.raw("forces", ()), t_start=t_start,
-                        integrator_state=top.raw("integrator_state", None), chaos=output.raw("chaos", None))
+                        integrator_state=top.raw("integrator_state", None), chaos=output.raw("chaos", None),
+                        device=device)
     scenario.remember_origins(bodies.origins)
     renamed = rebound_note(integrator, settings)  # REBOUND's whfast, leapfrog with order: what they became
     scenario.remember_input([renamed, *bodies.notes] if renamed else bodies.notes)  # for `orbitsim validate`

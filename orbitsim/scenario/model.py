@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from orbitsim.gpu.support import DEVICES, gpu_refusal
 from orbitsim.integrators.rebound_names import leapfrog_order
 from orbitsim.sampling import EveryPlan, IntervalPlan
 from orbitsim.scenario.bodies import check_body_arrays, check_coincident
@@ -90,6 +91,7 @@ class Scenario(ScenarioData):
         self._validate_forces()
         self._validate_chaos()
         check_direction(self.integrator, self.dt, self.events, self.forces)  # dt < 0: backwards, where possible
+        self._validate_device()
         if self.integrator_state is not None:
             from orbitsim.scenario.integrator_state import check_integrator_state  # noqa: PLC0415 -- lazy: off `orbitsim validate`
 
@@ -120,6 +122,16 @@ class Scenario(ScenarioData):
 
         self._set("chaos", read_chaos(self.chaos, self.names))
         check_chaos_run(self.integrator, self.integrator_settings or {}, self.forces, self.events is not None)
+
+    def _validate_device(self) -> None:
+        """``device``: cpu or gpu; on the GPU, what it does not carry is refused in one line naming what it
+        does (:mod:`orbitsim.gpu.support`, which loads nothing of numba-cuda)."""
+        if self.device not in DEVICES:
+            raise ScenarioError(f"device must be one of {', '.join(DEVICES)}, got {describe(self.device)}",
+                                key="device")
+        refusal = gpu_refusal(self) if self.device == "gpu" else None
+        if refusal is not None:
+            raise ScenarioError(refusal[1], key=refusal[0])
 
     def _validate_events(self) -> None:
         self._set("radii", check_radii(self.radii, self.n_bodies))

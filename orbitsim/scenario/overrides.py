@@ -21,7 +21,7 @@ __all__ = ["OVERRIDABLE", "resolve_overrides"]
 OVERRIDABLE = ("name", "description", "integrator", "integrator_settings", "dt", "t_start", "steps", "t_end", "every",
                "interval", "record_positions", "softening", "G", "names", "masses", "positions",
                "velocities", "source", "checkpoint_every", "checkpoint_seconds", "radii", "events", "record_elements",
-               "elements_primary", "forces", "integrator_state")
+               "elements_primary", "forces", "integrator_state", "device")
 #: What an integrator state belongs to (orbitsim.scenario.integrator_state): a change drops the state.
 _STATE_OF = ("integrator", "integrator_settings", "dt", "G", "softening", "names", "masses", "positions", "velocities")
 

@@ -52,6 +52,8 @@ def scenario_to_dict(s: ScenarioData, bodies: bool = True) -> dict[str, Any]:
            "dt": s.dt, **start, "steps": s.steps, "output": output, "softening": s.softening, "frame": "as_given"}
     if s.adaptive:  # its grid is the output intervals up to t_end exactly, and `steps` is refused
         doc = {("t_end" if k == "steps" else k): (s.t_end if k == "steps" else v) for k, v in doc.items()}
+    if s.device != "cpu":  # only when asked for, so every CPU scenario keeps its text and SHA-256
+        doc["device"] = s.device
     if s.events is not None:
         doc["events"] = s.events.to_dict()
     if s.forces:  # resolved: c, source and spin axis explicit, so the text says what ran
