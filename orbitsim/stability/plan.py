@@ -197,6 +197,9 @@ def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float
         raise MapSpecError("softening: the ensemble kernel integrates unsoftened gravity; set softening: 0")
     if scenario.forces:
         raise MapSpecError("forces: the ensemble kernel integrates gravity alone; remove the forces section")
+    if scenario.events is not None:  # never silently ignored: a pixel's own stops are not the section's
+        raise MapSpecError("events: a map stops each pixel at its own escape (--escape-distance) or collision (the "
+                           "bodies' radii), not as an events section says; remove the events section")
     if scenario.dt <= 0.0:
         raise MapSpecError(f"dt = {scenario.dt:g}: a map steps forward in time (dt > 0)")
     if not t_end > scenario.t_start:

@@ -114,6 +114,18 @@ def test_a_scheme_the_ensemble_lacks_is_refused(tmp_path):
     assert not (tmp_path / "m").exists()
 
 
+def test_an_events_section_is_refused_not_ignored(tmp_path):
+    # A pixel stops at its own escape (--escape-distance) or collision (radii); an events section asking
+    # for something else (here: an escape at 50) would otherwise be silently dropped.
+    path = tmp_path / "ev.yaml"
+    path.write_text(SCENARIO.replace("bodies:", "events:\n  escape: {distance: 50, action: halt}\nbodies:"),
+                    encoding="utf-8")
+    code, _, stderr = _map([str(path), "--x", "planet.a=6:8:2", "--t-end", "10", "-o", str(tmp_path / "m")])
+    assert code == 2 and stderr.count("\n") == 1, stderr
+    assert "events: a map stops each pixel at its own escape (--escape-distance)" in stderr
+    assert not (tmp_path / "m").exists()
+
+
 LEAPFROG4 = SCENARIO.replace("integrator: wisdom_holman", "integrator: {name: leapfrog, order: 4}")
 
 
@@ -318,3 +330,21 @@ def test_a_massless_varied_body_not_listed_last_gets_the_one_line_hint(scenario:
         axes = [parse_axis("--x", "planet.a=7.0:8.0:3", doc), parse_axis("--y", "planet.e=0:0.3:2", doc)]
         _hint_shared_massive(make_plan(load_scenario(str(path)), doc, axes, 40.0, None, 256))
         assert ("not the last body" in capsys.readouterr().err) is said
+
+
+def test_a_gpu_map_of_a_scheme_without_a_gpu_variational_kernel_is_refused_in_one_line(tmp_path: Path):
+    # The GPU ensemble carries the variational equations for wisdom_holman only (its leapfrog and verlet run
+    # without them), so a GPU map of a kick-drift scheme is refused when planned, before any pixel runs.
+    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.stability.axes import MapSpecError, parse_axis
+    from orbitsim.stability.plan import make_plan
+
+    path = tmp_path / "lf.yaml"
+    path.write_text(LEAPFROG4, encoding="utf-8")
+    doc, _ = parse_yaml(LEAPFROG4, str(path))
+    axes = [parse_axis("--x", "planet.a=7.0:8.0:3", doc)]
+    with pytest.raises(MapSpecError) as info:
+        make_plan(load_scenario(str(path)), doc, axes, 40.0, None, 256, 0, "gpu")
+    assert "\n" not in str(info.value) and "integrator 'leapfrog4'" in str(info.value)
+    assert "wisdom_holman only" in str(info.value) and "without --device gpu" in str(info.value)
+    assert make_plan(load_scenario(str(path)), doc, axes, 40.0, None, 256).integrator == "leapfrog4"  # the CPU runs it
