@@ -32,7 +32,6 @@ Importing this module needs a usable device or the simulator (:func:`orbitsim.gp
 from __future__ import annotations
 
 import functools
-import math
 import warnings
 from typing import Any, NamedTuple
 
@@ -41,6 +40,7 @@ from numba.core.errors import NumbaPerformanceWarning
 
 from orbitsim._jit import cuda_device, cuda_kernel
 from orbitsim.gpu.device import require_cuda, simulated
+from orbitsim.gpu.rsqrt import rsqrt
 
 cuda = require_cuda()
 
@@ -60,16 +60,6 @@ SAMPLE_ROWS = 9
 
 #: Largest finite float64: |x| <= DBL_MAX is False exactly for NaN and +-inf.
 DBL_MAX = 1.7976931348623157e308
-
-if simulated():
-    @cuda_device
-    def rsqrt(x: float) -> float:
-        """1 / sqrt(x): the simulator has no libdevice."""
-        return 1.0 / math.sqrt(x)
-else:  # pragma: no cover - hardware only (benchmarks/gpu_check.py)
-    from numba.cuda import libdevice
-
-    rsqrt = libdevice.rsqrt
 
 
 def default_tile() -> int:

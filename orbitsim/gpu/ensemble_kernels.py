@@ -42,7 +42,6 @@ import math
 from functools import cache
 from typing import Any
 
-import numpy as np
 from numba import float64
 
 from orbitsim._jit import cuda_device, cuda_kernel
@@ -59,7 +58,8 @@ from orbitsim.ensemble.status import (
     N_COLUMNS,
     SURVIVAL_TIME,
 )
-from orbitsim.gpu.device import require_cuda, simulated
+from orbitsim.gpu.device import require_cuda
+from orbitsim.gpu.rsqrt import rsqrt
 from orbitsim.integrators.wisdom_holman.tangent import jacobi_term_tangent_kick, kepler_step_tangent
 from orbitsim.physics.coordinates import inertial_to_jacobi, jacobi_to_inertial
 from orbitsim.physics.diagnostics import _potential_small, kinetic_energy
@@ -70,16 +70,6 @@ cuda = require_cuda()
 
 #: Threads per block: a multiple of the warp; 128 leaves registers for the unrolled local arrays.
 THREADS_PER_BLOCK = 128
-
-if simulated():
-    # The simulator's libdevice functions are stubs (they return None): the same quantity, by division, in
-    # numpy's float64 so that 1 / 0 is inf as on the device (Python's floats would raise).
-    @cuda_device
-    def rsqrt(x):
-        """1 / sqrt(x) (the simulator's stand-in for libdevice.rsqrt)."""
-        return np.float64(1.0) / np.float64(math.sqrt(x))
-else:  # pragma: no cover - hardware only (benchmarks/gpu_check.py)
-    from numba.cuda.libdevice import rsqrt
 
 
 @cuda_device
