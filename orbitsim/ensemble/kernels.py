@@ -98,6 +98,17 @@ def track_orbit(jpos, jvel, mu, watch, a0, max_e, delta_a):
     return (e if e > max_e else max_e), (spread if spread > delta_a else delta_a)
 
 
+@jit_inline
+def record_chaos_indicators(out, t, max_e, delta_a, megno):
+    """A variational system's row at its stop time ``t``: survival time, max e, delta a, MEGNO and the
+    mLCE. One place for every variational kernel (Wisdom-Holman, kick-drift, the GPU's)."""
+    out[SURVIVAL_TIME] = t
+    out[MAX_E] = max_e
+    out[DELTA_A] = delta_a
+    out[MEGNO] = megno_value(megno, t)
+    out[LYAPUNOV] = lyapunov(megno)
+
+
 @jit
 def _energy(pos, vel, m, G, rows):
     return kinetic_energy(vel, m) + potential_energy(pos, m, G, 0.0, rows)
@@ -233,11 +244,7 @@ def run_system_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps,
         if status != COMPLETE:
             break
     t = t_start + done * dt
-    out[SURVIVAL_TIME] = t
-    out[MAX_E] = max_e
-    out[DELTA_A] = delta_a
-    out[MEGNO] = megno_value(megno, t)
-    out[LYAPUNOV] = lyapunov(megno)
+    record_chaos_indicators(out, t, max_e, delta_a, megno)
     if status == DIVERGED:
         out[ENERGY_ERROR] = np.nan
         return status, done

@@ -36,17 +36,12 @@ import numpy as np
 from numba import prange
 
 from orbitsim._jit import jit, jit_inline, jit_parallel_exact
-from orbitsim.chaos.megno import MegnoState, lyapunov, megno_value
-from orbitsim.ensemble.kernels import _energy, _stop_reason, jacobi_elements_ae, track_orbit
+from orbitsim.chaos.megno import MegnoState
+from orbitsim.ensemble.kernels import _energy, _stop_reason, jacobi_elements_ae, record_chaos_indicators, track_orbit
 from orbitsim.ensemble.status import (
     COMPLETE,
-    DELTA_A,
     DIVERGED,
     ENERGY_ERROR,
-    LYAPUNOV,
-    MAX_E,
-    MEGNO,
-    SURVIVAL_TIME,
 )
 from orbitsim.integrators.base import Tangent
 from orbitsim.integrators.leapfrog import advance_chaos2, advance_chaos4, advance_chaos6, advance_chaos8
@@ -89,11 +84,7 @@ def run_kick_drift_system(advance_chaos, pos, vel, acc, m, force, dt, work, t_st
         if status != COMPLETE:
             break
     t = t_start + done * dt
-    out[SURVIVAL_TIME] = t
-    out[MAX_E] = max_e
-    out[DELTA_A] = delta_a
-    out[MEGNO] = megno_value(megno, t)
-    out[LYAPUNOV] = lyapunov(megno)
+    record_chaos_indicators(out, t, max_e, delta_a, megno)
     if status == DIVERGED:
         out[ENERGY_ERROR] = np.nan
         return status, done

@@ -45,8 +45,8 @@ from typing import Any
 from numba import float64
 
 from orbitsim._jit import cuda_device, cuda_kernel
-from orbitsim.chaos.megno import MegnoState, deltad_delta, lyapunov, megno_update, megno_value, rescale_power_of_two
-from orbitsim.ensemble.kernels import _stop_reason, jacobi_elements_ae, track_orbit
+from orbitsim.chaos.megno import MegnoState, deltad_delta, megno_update, rescale_power_of_two
+from orbitsim.ensemble.kernels import _stop_reason, jacobi_elements_ae, record_chaos_indicators, track_orbit
 from orbitsim.ensemble.status import (
     COMPLETE,
     DELTA_A,
@@ -219,11 +219,7 @@ def run_wh_variational(pos, vel, dpos, dvel, m, G, dt, t_start, n_steps, escape_
         if status != COMPLETE:
             break
     t = t_start + done * dt
-    out[SURVIVAL_TIME] = t
-    out[MAX_E] = max_e
-    out[DELTA_A] = delta_a
-    out[MEGNO] = megno_value(megno, t)
-    out[LYAPUNOV] = lyapunov(megno)
+    record_chaos_indicators(out, t, max_e, delta_a, megno)
     if status == DIVERGED:
         out[ENERGY_ERROR] = math.nan
     else:
