@@ -25,6 +25,7 @@ import dataclasses
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -37,6 +38,7 @@ __all__ = [
     "SamplePlan",
     "SimulationError",
     "TargetWindow",
+    "as_state",
     "next_budget",
     "sample_steps_every",
     "sample_steps_interval",
@@ -253,3 +255,25 @@ def next_budget(budget: int, elapsed: float) -> int:
         return budget * 4
     factor = min(4.0, max(0.25, TARGET_CALL_SECONDS / elapsed))
     return max(1, int(budget * factor))
+
+
+def as_state(masses: Any, positions: Any, velocities: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N,) masses and (3, N) positions and velocities from (N,), (N, 3), (N, 3), copied; SimulationError
+    (one line) for no bodies, wrong shapes, non-finite values or a negative mass. The CPU and GPU
+    simulations both start from it."""
+    m = np.ascontiguousarray(masses, dtype=np.float64).reshape(-1)
+    x = np.asarray(positions, dtype=np.float64)
+    v = np.asarray(velocities, dtype=np.float64)
+    n = m.shape[0]
+    if n < 1:
+        raise SimulationError("a system needs at least one body")
+    if x.shape != (n, 3) or v.shape != (n, 3):
+        raise SimulationError(f"positions and velocities must have shape ({n}, 3); got {x.shape} and {v.shape}")
+    for label, arr in (("masses", m), ("positions", x), ("velocities", v)):
+        if not np.all(np.isfinite(arr)):
+            raise SimulationError(f"{label} contain NaN or infinite values")
+    if np.any(m < 0.0):
+        raise SimulationError("masses must be >= 0")
+    # Always copies: the integrators work in place, and a caller's (N, 3) view of a (3, N) array
+    # (e.g. Simulation.state() of another run, transposed back) must not be overwritten.
+    return m.copy(), np.array(x.T, order="C"), np.array(v.T, order="C")

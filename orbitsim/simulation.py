@@ -47,6 +47,7 @@ from orbitsim.sampling import (
     SamplePlan,
     SimulationError,
     TargetWindow,
+    as_state,
     next_budget,
     sample_steps_every,
     sample_steps_interval,
@@ -67,25 +68,6 @@ MAX_BUFFER_BYTES = 32 * 2**20
 #: Stopper's grace; there the hand-off to the kernel thread (50-250 us a call measured on this
 #: 2-core machine, busy) would be a visible part of short calls (the first ones, a 5-body run).
 INTERRUPTIBLE_MIN_N = 2048
-
-
-def _as_state(masses: Any, positions: Any, velocities: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    m = np.ascontiguousarray(masses, dtype=np.float64).reshape(-1)
-    x = np.asarray(positions, dtype=np.float64)
-    v = np.asarray(velocities, dtype=np.float64)
-    n = m.shape[0]
-    if n < 1:
-        raise SimulationError("a system needs at least one body")
-    if x.shape != (n, 3) or v.shape != (n, 3):
-        raise SimulationError(f"positions and velocities must have shape ({n}, 3); got {x.shape} and {v.shape}")
-    for label, arr in (("masses", m), ("positions", x), ("velocities", v)):
-        if not np.all(np.isfinite(arr)):
-            raise SimulationError(f"{label} contain NaN or infinite values")
-    if np.any(m < 0.0):
-        raise SimulationError("masses must be >= 0")
-    # Always copies: the integrators work in place, and a caller's (N, 3) view of a (3, N) array
-    # (e.g. Simulation.state() of another run, transposed back) must not be overwritten.
-    return m.copy(), np.array(x.T, order="C"), np.array(v.T, order="C")
 
 
 @dataclass
@@ -169,7 +151,7 @@ class Simulation:
         self.call_undone = False  # True once a stop undid a jitted call (_call_kernels): the state is as before it
         if self.forces is not None:
             self._check_forces()
-        self.replace_bodies(*_as_state(self.masses, self.positions, self.velocities))
+        self.replace_bodies(*as_state(self.masses, self.positions, self.velocities))
         self.steps_done = 0
         self.diverged = False
         self.watcher = None

@@ -31,7 +31,7 @@ from orbitsim.gpu.stepping import DeviceSystem
 from orbitsim.gpu.support import GPU_SCHEMES
 from orbitsim.integrators.registry import get_integrator
 from orbitsim.results import SampleBuffers, SampleChunk
-from orbitsim.sampling import ExplicitPlan, SamplePlan, SimulationError, TargetWindow, next_budget
+from orbitsim.sampling import ExplicitPlan, SamplePlan, SimulationError, TargetWindow, as_state, next_budget
 
 __all__ = ["GPUSimulation", "gpu_simulation"]
 
@@ -94,7 +94,7 @@ class GPUSimulation:
             raise SimulationError(f"{self.spec.name} on the GPU takes no integrator settings, got "
                                   f"{', '.join(self.settings)}")
         self.dt, self.G, self.softening, self.t0 = float(dt), float(G), float(softening), float(t0)
-        m, pos, vel = _as_state(masses, positions, velocities)
+        m, pos, vel = as_state(masses, positions, velocities)
         self.m = m
         self.n = int(m.shape[0])
         self.work = self.scheme.make_work(m, self.G, self.settings)
@@ -216,24 +216,6 @@ class GPUSimulation:
             buffers.snapshots[r, 0] = self.pos
             buffers.snapshots[r, 1] = self.vel
         return True
-
-
-def _as_state(masses: Any, positions: Any, velocities: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(N,) masses and (3, N) positions and velocities, validated as :class:`~orbitsim.simulation.Simulation` does."""
-    m = np.ascontiguousarray(masses, dtype=np.float64).reshape(-1)
-    x = np.asarray(positions, dtype=np.float64)
-    v = np.asarray(velocities, dtype=np.float64)
-    n = m.shape[0]
-    if n < 1:
-        raise SimulationError("a system needs at least one body")
-    if x.shape != (n, 3) or v.shape != (n, 3):
-        raise SimulationError(f"positions and velocities must have shape ({n}, 3); got {x.shape} and {v.shape}")
-    for label, arr in (("masses", m), ("positions", x), ("velocities", v)):
-        if not np.all(np.isfinite(arr)):
-            raise SimulationError(f"{label} contain NaN or infinite values")
-    if np.any(m < 0.0):
-        raise SimulationError("masses must be >= 0")
-    return m.copy(), np.array(x.T, order="C"), np.array(v.T, order="C")
 
 
 def gpu_simulation(scenario: Any, start: Any = None) -> GPUSimulation:
