@@ -76,11 +76,14 @@ from orbitsim.physics.kepler import KEPLER_OK, kepler_drift_bodies
 @jit
 def jacobi_elements_ae(jpos, jvel, mu, i):
     """Semi-major axis and eccentricity of Jacobi body ``i`` about ``mu[i] = G M_i`` (a < 0: hyperbola)."""
-    x, y, z = jpos[0, i], jpos[1, i], jpos[2, i]
-    vx, vy, vz = jvel[0, i], jvel[1, i], jvel[2, i]
+    return elements_ae(jpos[0, i], jpos[1, i], jpos[2, i], jvel[0, i], jvel[1, i], jvel[2, i], mu[i])
+
+
+@jit_inline
+def elements_ae(x, y, z, vx, vy, vz, k):
+    """Semi-major axis and eccentricity of the orbit (x, v) about ``k = G M``, branch free (a < 0: hyperbola)."""
     r = math.sqrt(x * x + y * y + z * z)
     v2 = vx * vx + vy * vy + vz * vz
-    k = mu[i]
     energy = 0.5 * v2 - k / r
     hx = y * vz - z * vy
     hy = z * vx - x * vz

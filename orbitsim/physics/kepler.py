@@ -42,7 +42,7 @@ import math
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.physics.kepler_solver import ITERATING, NEWTON_FAST_ITERATIONS, SINGULAR, evaluate, finish, setup, solve
 
 #: Status codes returned by the jitted drifts.
@@ -64,14 +64,23 @@ class KeplerConvergenceError(RuntimeError):
     """The universal Kepler equation could not be solved (which body, which step, why)."""
 
 
+@jit_inline
+def lagrange_coefficients(mu, dt, r0i, G1, G2, G3, r):
+    """``(1/r, F, G, Fd, Gd)``: the shifted Lagrange coefficients of the drift (f - 1, g, fd, gd - 1)."""
+    ri = 1.0 / r
+    return ri, -mu * G2 * r0i, dt - mu * G3, -mu * G1 * r0i * ri, -mu * G2 * ri
+
+
 @jit
 def _fg_update(x, y, z, vx, vy, vz, mu, dt, r0i, G1, G2, G3, r):
     """The state after the step: ``r0 + F r0 + G v0``, ``v0 + Fd r0 + Gd v0``."""
-    ri = 1.0 / r
-    F = -mu * G2 * r0i
-    G = dt - mu * G3
-    Fd = -mu * G1 * r0i * ri
-    Gd = -mu * G2 * ri
+    _, F, G, Fd, Gd = lagrange_coefficients(mu, dt, r0i, G1, G2, G3, r)
+    return fg_apply(x, y, z, vx, vy, vz, F, G, Fd, Gd)
+
+
+@jit_inline
+def fg_apply(x, y, z, vx, vy, vz, F, G, Fd, Gd):
+    """``(r0 + F r0 + G v0, v0 + Fd r0 + Gd v0)`` as six numbers."""
     return (
         x + (F * x + G * vx),
         y + (F * y + G * vy),

@@ -51,7 +51,7 @@ import math
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 
 #: Largest |z| at which the Stumpff series is summed directly.
 STUMPFF_SERIES_MAX_Z = 1.0
@@ -138,18 +138,36 @@ def stiefel(beta, X):
     return c0, X * c1, X2 * c2, X2 * X * c3
 
 
-@jit
-def evaluate(r0, eta0, zeta0, beta, dt, X):
-    """``(dX, G1, G2, G3, r, settled)`` at X: the Newton correction, the G-functions, the radius,
-    and whether K(X) is within its own rounding error."""
-    _, G1, G2, G3 = stiefel(beta, X)
+@jit_inline
+def stiefel_short(beta, X):
+    """:func:`stiefel` by the series alone, branch free (the same bits where ``|beta X^2| <=``
+    :data:`STUMPFF_SERIES_MAX_Z`), and ``z = beta X^2`` for the caller to check that it was."""
+    X2 = X * X
+    z = beta * X2
+    c0, c1, c2, c3 = _stumpff_series(z)
+    return c0, X * c1, X2 * c2, X2 * X * c3, z
+
+
+@jit_inline
+def newton_terms(r0, eta0, zeta0, dt, X, G1, G2, G3):
+    """``(dX, r, settled)`` from the G-functions at X: the Newton correction, the radius, and whether
+    K(X) is within its own rounding error."""
     t1 = r0 * X
     t2 = eta0 * G2
     t3 = zeta0 * G3
     K = (t1 + t2 + t3) - dt
     r = r0 + eta0 * G1 + zeta0 * G2
     settled = abs(K) <= RESIDUAL_ULPS * EPS * (abs(t1) + abs(t2) + abs(t3) + abs(dt))
-    return -K / r, G1, G2, G3, r, settled
+    return -K / r, r, settled
+
+
+@jit
+def evaluate(r0, eta0, zeta0, beta, dt, X):
+    """``(dX, G1, G2, G3, r, settled)`` at X: the Newton correction, the G-functions, the radius,
+    and whether K(X) is within its own rounding error."""
+    _, G1, G2, G3 = stiefel(beta, X)
+    dX, r, settled = newton_terms(r0, eta0, zeta0, dt, X, G1, G2, G3)
+    return dX, G1, G2, G3, r, settled
 
 
 @jit
@@ -165,6 +183,42 @@ def _far_start(r0, eta0, zeta0, beta, mu, dt):
     return math.copysign(math.log1p(s * abs(dt) / L) / s, dt)
 
 
+@jit_inline
+def solvable(r0, v2, eta0, mu):
+    """Whether a body's drift has anything to solve: finite state, r0 > 0, mu in (0, inf)."""
+    return (r0 > 0.0) & (r0 < np.inf) & (v2 < np.inf) & (eta0 == eta0) & (mu > 0.0) & (mu < np.inf)
+
+
+@jit_inline
+def orbit_terms(r0, v2, mu):
+    """``(1/r0, beta, zeta0)``: ``beta = 2 mu / r0 - v0^2`` and ``zeta0 = mu - beta r0``."""
+    r0i = 1.0 / r0
+    beta = 2.0 * mu * r0i - v2
+    return r0i, beta, mu - beta * r0
+
+
+@jit_inline
+def longer_than_half_period(beta, mu, dt):
+    """Whether ``|dt|`` exceeds half the period of an ellipse (beta > 0), which :func:`setup` reduces."""
+    return beta > 0.0 and dt * dt * (beta * beta * beta) > (math.pi * mu) ** 2
+
+
+@jit_inline
+def short_step(v2, mu, r0i, dt):
+    """Whether Newton starts from the series: ``(dt / t_dyn)^2 <`` :data:`NEWTON_MAX_STEP2`."""
+    return dt * dt * max(v2, mu * r0i) * (r0i * r0i) < NEWTON_MAX_STEP2
+
+
+@jit_inline
+def series_start(r0i, eta0, zeta0, beta, dt):
+    """The reversion of the series ``dt/r0 = X + a X^2 + b X^3 + d X^4`` (module docstring)."""
+    tau = dt * r0i
+    a = 0.5 * eta0 * r0i
+    b = zeta0 * r0i / 6.0
+    d = -eta0 * beta * r0i / 24.0
+    return tau * (1.0 + tau * (-a + tau * ((2.0 * a * a - b) + tau * (5.0 * a * (b - a * a) - d))))
+
+
 @jit
 def setup(r0, v2, eta0, mu, dt):
     """``(1/r0, zeta0, beta, dt_eff, X_start, stage)`` of one body (stage ITERATING, FAR, SINGULAR).
@@ -176,23 +230,25 @@ def setup(r0, v2, eta0, mu, dt):
     quartering, which over a step of 8 periods cost ~400 ulps of energy per step unreduced.
     A step shorter than P/2 is not touched (``dt_eff = dt``, same bits).
     """
-    if not (r0 > 0.0 and r0 < np.inf and v2 < np.inf and eta0 == eta0 and mu > 0.0 and mu < np.inf):
+    if not solvable(r0, v2, eta0, mu):
         return 0.0, 0.0, 0.0, dt, 0.0, SINGULAR
-    r0i = 1.0 / r0
-    beta = 2.0 * mu * r0i - v2
-    zeta0 = mu - beta * r0
-    if beta > 0.0 and dt * dt * (beta * beta * beta) > (math.pi * mu) ** 2:
+    r0i, beta, zeta0 = orbit_terms(r0, v2, mu)
+    if longer_than_half_period(beta, mu, dt):
         period = 2.0 * math.pi * mu / (beta * math.sqrt(beta))
         dt = dt - round(dt / period) * period
-    step2 = dt * dt * max(v2, mu * r0i) * (r0i * r0i)
-    if step2 < NEWTON_MAX_STEP2:
-        tau = dt * r0i
-        a = 0.5 * eta0 * r0i
-        b = zeta0 * r0i / 6.0
-        d = -eta0 * beta * r0i / 24.0
-        X = tau * (1.0 + tau * (-a + tau * ((2.0 * a * a - b) + tau * (5.0 * a * (b - a * a) - d))))
-        return r0i, zeta0, beta, dt, X, ITERATING
+    if short_step(v2, mu, r0i, dt):
+        return r0i, zeta0, beta, dt, series_start(r0i, eta0, zeta0, beta, dt), ITERATING
     return r0i, zeta0, beta, dt, _far_start(r0, eta0, zeta0, beta, mu, dt), FAR
+
+
+@jit_inline
+def setup_short(r0, v2, eta0, mu, dt):
+    """:func:`setup` for a lane of a vector loop, branch free: ``(1/r0, zeta0, beta, X_start, short)``,
+    where ``short`` says that :func:`setup` would return these same bits with stage ITERATING and
+    ``dt_eff = dt`` (a solvable body, a step under half a period and short enough for the series start)."""
+    r0i, beta, zeta0 = orbit_terms(r0, v2, mu)
+    short = solvable(r0, v2, eta0, mu) & (not longer_than_half_period(beta, mu, dt)) & short_step(v2, mu, r0i, dt)
+    return r0i, zeta0, beta, series_start(r0i, eta0, zeta0, beta, dt), short
 
 
 @jit

@@ -101,3 +101,45 @@ def test_the_shortcut_applies_only_where_the_massive_bodies_are_shared(change):
     else:
         dvel[0, 1, 1] = -dvel[0, 1, 1]  # Jupiter's variation in one system
     assert not restricted_applies(masses, pos, vel, radii, dpos, dvel, watch)
+
+
+def test_lanes_outside_the_common_case_take_the_scalar_drift_and_keep_their_bits():
+    """Pixels in SIMD lanes (orbitsim.ensemble.lanes): a lane whose drift leaves the vector path (here a test
+    planet so close to the Sun that half a step is longer than half its period, which the scalar solve
+    reduces by whole periods) is redone by the scalar drift beside lanes that stay on it; 40 pixels make
+    two full groups and one padded one."""
+    from orbitsim.ensemble.lanes import LANES
+    from orbitsim.physics.kepler_solver import setup_short
+
+    k = 40
+    masses, pos, vel = _test_planets(k, seed=3)
+    close = [5, 17, 39]  # one in each group
+    for i in close:
+        pos[i, :, 3] = pos[i, :, 0] + np.array([0.05, 0.0, 0.0])
+        vel[i, :, 3] = vel[i, :, 0] + np.array([0.0, 1.0 / np.sqrt(0.05), 0.0])
+    r0 = np.linalg.norm(pos[close[0], :, 3] - pos[close[0], :, 0])
+    assert not setup_short(r0, 1.0 / 0.05, 0.0, 1.0, 0.5 * DT)[4]  # the vector path refuses it
+    assert k % LANES != 0
+    kwargs = {"G": 1.0, "dt": DT, "n_steps": 300, "watch": 3, "variation": _variation(k)}
+    shared = run_ensemble(masses, pos, vel, **kwargs)
+    _assert_same_bits(shared, run_ensemble(masses, pos, vel, shared_massive=False, **kwargs))
+    assert (shared.status[close] == COMPLETE).all()  # they ran the whole way on the scalar drift
+
+
+def test_shared_massive_bits_do_not_depend_on_the_thread_count():
+    import numba
+
+    k = 40
+    masses, pos, vel = _test_planets(k, seed=4)
+    kwargs = {"G": 1.0, "dt": DT, "n_steps": 400, "watch": 3, "variation": _variation(k), "escape_distance": 15.0}
+    before = numba.get_num_threads()
+    runs = {}
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            runs[threads] = run_ensemble(masses, pos, vel, **kwargs)
+    finally:
+        numba.set_num_threads(before)
+    first, *others = runs.values()
+    for other in others:
+        _assert_same_bits(first, other)

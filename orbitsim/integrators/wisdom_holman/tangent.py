@@ -50,7 +50,13 @@ from orbitsim.forces.tangent import add_tangent_kick_forces
 from orbitsim.integrators.base import chaos_sample_loop, grid_time
 from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kick, record_failure
 from orbitsim.physics.coordinates import inertial_to_jacobi, jacobi_to_inertial
-from orbitsim.physics.kepler import KEPLER_NOT_CONVERGED, KEPLER_OK, KEPLER_SINGULAR
+from orbitsim.physics.kepler import (
+    KEPLER_NOT_CONVERGED,
+    KEPLER_OK,
+    KEPLER_SINGULAR,
+    fg_apply,
+    lagrange_coefficients,
+)
 from orbitsim.physics.kepler_solver import SINGULAR, setup, solve
 from orbitsim.physics.tangent import SKIP_PAIR_0_1, tangent_accelerations
 
@@ -58,6 +64,29 @@ from orbitsim.physics.tangent import SKIP_PAIR_0_1, tangent_accelerations
 _INV_FACTORIAL = np.array([1.0 / math.factorial(n) for n in range(16)])
 #: Bound on the quartering loop of :func:`stiefel_g6` (4^520 exceeds the largest float64).
 _MAX_QUARTERINGS = 520
+
+
+@jit_inline
+def _g6_series(z):
+    """``(c1, c2, c3, c4, c5)`` at ``|z| <= 0.1``: c4 and c5 by their series, then ``c_n = 1/n! - z c_{n+2}``."""
+    c5 = _INV_FACTORIAL[15]
+    c4 = _INV_FACTORIAL[14]
+    for k in range(13, 4, -2):
+        c5 = _INV_FACTORIAL[k] - z * c5
+        c4 = _INV_FACTORIAL[k - 1] - z * c4
+    c3 = _INV_FACTORIAL[3] - z * c5
+    c2 = _INV_FACTORIAL[2] - z * c4
+    c1 = 1.0 - z * c3
+    return c1, c2, c3, c4, c5
+
+
+@jit_inline
+def _g6_products(X, z, c1, c2, c3, c4, c5):
+    """``G0..G5`` from ``c1..c5`` at ``z = beta X^2``."""
+    c0 = 1.0 - z * c2
+    X2 = X * X
+    X3 = X2 * X
+    return c0, c1 * X, c2 * X2, c3 * X3, c4 * X3 * X, c5 * X3 * X2
 
 
 @jit_inline
@@ -73,14 +102,7 @@ def stiefel_g6(beta, X):
     while abs(z) > 0.1 and n < _MAX_QUARTERINGS:
         z = z * 0.25
         n += 1
-    c5 = _INV_FACTORIAL[15]
-    c4 = _INV_FACTORIAL[14]
-    for k in range(13, 4, -2):
-        c5 = _INV_FACTORIAL[k] - z * c5
-        c4 = _INV_FACTORIAL[k - 1] - z * c4
-    c3 = _INV_FACTORIAL[3] - z * c5
-    c2 = _INV_FACTORIAL[2] - z * c4
-    c1 = 1.0 - z * c3
+    c1, c2, c3, c4, c5 = _g6_series(z)
     for _ in range(n):
         z = z * 4.0
         c5 = (c5 + c4 + c3 * c2) * 0.0625
@@ -88,10 +110,17 @@ def stiefel_g6(beta, X):
         c3 = 1.0 / 6.0 - z * c5
         c2 = 0.5 - z * c4
         c1 = 1.0 - z * c3
-    c0 = 1.0 - z * c2
-    X2 = X * X
-    X3 = X2 * X
-    return c0, c1 * X, c2 * X2, c3 * X3, c4 * X3 * X, c5 * X3 * X2
+    return _g6_products(X, z, c1, c2, c3, c4, c5)
+
+
+@jit_inline
+def stiefel_g6_short(beta, X):
+    """:func:`stiefel_g6` without quarterings, branch free: the same bits where ``|beta X^2| <= 0.1``; and
+    ``z = beta X^2`` for the caller to check that it was."""
+    z = beta * X * X
+    c1, c2, c3, c4, c5 = _g6_series(z)
+    G0, G1, G2, G3, G4, G5 = _g6_products(X, z, c1, c2, c3, c4, c5)
+    return G0, G1, G2, G3, G4, G5, z
 
 
 @jit_inline
@@ -101,6 +130,36 @@ def _poison_tangent(pos, vel, dpos, dvel, i):
         vel[c, i] = np.nan
         dpos[c, i] = np.nan
         dvel[c, i] = np.nan
+
+
+@jit_inline
+def drift_derivative(x, y, z, vx, vy, vz, dx, dy, dz, dvx, dvy, dvz, mu, r0, r0i, eta0, zeta0, beta, X, ri, f, g, fd,
+                     gd, Gs0, Gs1, Gs2, Gs3, Gs4, Gs5):
+    """The tangent vector after the drift (module docstring): ``(dr', dv')`` from the start state and its
+    tangent, the solve's terms, the shifted Lagrange coefficients and ``G0..G5`` at the full step's root."""
+    dr0 = (dx * x + dy * y + dz * z) * r0i
+    dbeta = -2.0 * mu * dr0 * r0i * r0i - 2.0 * (dvx * vx + dvy * vy + dvz * vz)
+    deta0 = dx * vx + dy * vy + dz * vz + x * dvx + y * dvy + z * dvz
+    dzeta0 = -beta * dr0 - r0 * dbeta
+    G3beta = 0.5 * (3.0 * Gs5 - X * Gs4)
+    G2beta = 0.5 * (2.0 * Gs4 - X * Gs3)
+    G1beta = 0.5 * (Gs3 - X * Gs2)
+    tbeta = eta0 * G2beta + zeta0 * G3beta
+    dX = -1.0 * ri * (X * dr0 + Gs2 * deta0 + Gs3 * dzeta0 + tbeta * dbeta)
+    dG1 = Gs0 * dX + G1beta * dbeta
+    dG2 = Gs1 * dX + G2beta * dbeta
+    dG3 = Gs2 * dX + G3beta * dbeta
+    dr = dr0 + Gs1 * deta0 + Gs2 * dzeta0 + eta0 * dG1 + zeta0 * dG2
+    df = mu * Gs2 * dr0 * r0i * r0i - mu * dG2 * r0i
+    dg = -mu * dG3
+    dfd = -mu * dG1 * r0i * ri + mu * Gs1 * (dr0 * r0i + dr * ri) * r0i * ri
+    dgd = -mu * dG2 * ri + mu * Gs2 * dr * ri * ri
+    return (dx + (f * dx + g * dvx + df * x + dg * vx),
+            dy + (f * dy + g * dvy + df * y + dg * vy),
+            dz + (f * dz + g * dvz + df * z + dg * vz),
+            dvx + (fd * dx + gd * dvx + dfd * x + dgd * vx),
+            dvy + (fd * dy + gd * dvy + dfd * y + dgd * vy),
+            dvz + (fd * dz + gd * dvz + dfd * z + dgd * vz))
 
 
 @jit_inline
@@ -129,45 +188,17 @@ def kepler_drift_tangent(pos, vel, dpos, dvel, i, mu, dt):
     if not converged:
         _poison_tangent(pos, vel, dpos, dvel, i)
         return KEPLER_NOT_CONVERGED
-    ri = 1.0 / r
-    f = -mu * G2 * r0i
-    g = dt_eff - mu * G3
-    fd = -mu * G1 * r0i * ri
-    gd = -mu * G2 * ri
-    pos[0, i] = x + (f * x + g * vx)
-    pos[1, i] = y + (f * y + g * vy)
-    pos[2, i] = z + (f * z + g * vz)
-    vel[0, i] = vx + (fd * x + gd * vx)
-    vel[1, i] = vy + (fd * y + gd * vy)
-    vel[2, i] = vz + (fd * z + gd * vz)
+    ri, f, g, fd, gd = lagrange_coefficients(mu, dt_eff, r0i, G1, G2, G3, r)
+    pos[0, i], pos[1, i], pos[2, i], vel[0, i], vel[1, i], vel[2, i] = fg_apply(x, y, z, vx, vy, vz, f, g, fd, gd)
     if dt_eff != dt:
         # The solve dropped whole periods; the derivative at the full dt keeps the secular shear
         # of the period's dependence on beta, so X is taken back to the full step's root.
         X += round(dt / (2.0 * math.pi * mu / (beta * math.sqrt(beta)))) * (2.0 * math.pi / math.sqrt(beta))
     Gs0, Gs1, Gs2, Gs3, Gs4, Gs5 = stiefel_g6(beta, X)
-    dr0 = (dx * x + dy * y + dz * z) * r0i
-    dbeta = -2.0 * mu * dr0 * r0i * r0i - 2.0 * (dvx * vx + dvy * vy + dvz * vz)
-    deta0 = dx * vx + dy * vy + dz * vz + x * dvx + y * dvy + z * dvz
-    dzeta0 = -beta * dr0 - r0 * dbeta
-    G3beta = 0.5 * (3.0 * Gs5 - X * Gs4)
-    G2beta = 0.5 * (2.0 * Gs4 - X * Gs3)
-    G1beta = 0.5 * (Gs3 - X * Gs2)
-    tbeta = eta0 * G2beta + zeta0 * G3beta
-    dX = -1.0 * ri * (X * dr0 + Gs2 * deta0 + Gs3 * dzeta0 + tbeta * dbeta)
-    dG1 = Gs0 * dX + G1beta * dbeta
-    dG2 = Gs1 * dX + G2beta * dbeta
-    dG3 = Gs2 * dX + G3beta * dbeta
-    dr = dr0 + Gs1 * deta0 + Gs2 * dzeta0 + eta0 * dG1 + zeta0 * dG2
-    df = mu * Gs2 * dr0 * r0i * r0i - mu * dG2 * r0i
-    dg = -mu * dG3
-    dfd = -mu * dG1 * r0i * ri + mu * Gs1 * (dr0 * r0i + dr * ri) * r0i * ri
-    dgd = -mu * dG2 * ri + mu * Gs2 * dr * ri * ri
-    dpos[0, i] = dx + (f * dx + g * dvx + df * x + dg * vx)
-    dpos[1, i] = dy + (f * dy + g * dvy + df * y + dg * vy)
-    dpos[2, i] = dz + (f * dz + g * dvz + df * z + dg * vz)
-    dvel[0, i] = dvx + (fd * dx + gd * dvx + dfd * x + dgd * vx)
-    dvel[1, i] = dvy + (fd * dy + gd * dvy + dfd * y + dgd * vy)
-    dvel[2, i] = dvz + (fd * dz + gd * dvz + dfd * z + dgd * vz)
+    (dpos[0, i], dpos[1, i], dpos[2, i],
+     dvel[0, i], dvel[1, i], dvel[2, i]) = drift_derivative(x, y, z, vx, vy, vz, dx, dy, dz, dvx, dvy, dvz, mu, r0,
+                                                            r0i, eta0, zeta0, beta, X, ri, f, g, fd, gd,
+                                                            Gs0, Gs1, Gs2, Gs3, Gs4, Gs5)
     return KEPLER_OK
 
 
