@@ -24,8 +24,8 @@ no longer written, and it is no longer solved, so it cannot slow or poison the o
 
 Why one module: :func:`pixel_block_lanes` is one pixel's step (the whole-system step restricted to the
 test body) written lane-wise, part for part, and reads best in one piece beside the scalar parts it
-reuses; its drift and tangent-gravity loops are the parts that recur (twice each), so they alone are
-functions.
+reuses; the drift, the kick and the tangent gravity are functions of their own (the first two called from
+one place each, so that their long code is inlined and compiled once).
 """
 
 from __future__ import annotations
@@ -179,7 +179,7 @@ def drift_lanes(g, views, mu, dt):
     return failed
 
 
-@jit_inline
+@jit
 def _tangent_row_lanes(g, pos_row, dpos_row, out_row, rec, s, pos_block, dpos_block, q, m, G, eps2):
     """Row p (the test body) of :func:`orbitsim.physics.tangent.tangent_accelerations` for every lane, against
     the recorded massive positions and (scaled) tangent positions, into rows ``out_row..+2``: the same terms in
@@ -229,6 +229,72 @@ def _stop_lanes(g, failed, s):
             g[STOP_STEP * LANES + lane] = s + 1.0
 
 
+@jit_inline
+def _kick_lanes(g, rec, s, q, m, G, eps2, dt, mu_t):
+    """The interaction kick of every lane's test body and of its tangent vector (interaction_kick, then
+    interaction_kick_tangent's part for the last body), against step ``s`` of the record."""
+    for c in range(3):
+        com = rec[s, R_HALF_COM + c]
+        for lane in range(LANES):
+            g[(IPOS + c) * LANES + lane] = _row(g, JP + c, lane) + com
+            g[(ACC + c) * LANES + lane] = 0.0
+    for i in range(q):
+        px, py, pz = (record_value(rec, s, V_KICK_POS, q, 0, i), record_value(rec, s, V_KICK_POS, q, 1, i),
+                      record_value(rec, s, V_KICK_POS, q, 2, i))
+        mass = m[i]
+        for lane in range(LANES):
+            dx = _row(g, IPOS, lane) - px
+            dy = _row(g, IPOS + 1, lane) - py
+            dz = _row(g, IPOS + 2, lane) - pz
+            r2 = dx * dx + dy * dy + dz * dz + eps2
+            g_r3 = G / (r2 * math.sqrt(r2))
+            mi = mass * g_r3
+            g[ACC * LANES + lane] -= mi * dx
+            g[(ACC + 1) * LANES + lane] -= mi * dy
+            g[(ACC + 2) * LANES + lane] -= mi * dz
+    acc_com_x, acc_com_y, acc_com_z = rec[s, R_ACC_COM], rec[s, R_ACC_COM + 1], rec[s, R_ACC_COM + 2]
+    for lane in range(LANES):
+        ax = _row(g, ACC, lane) + 0.0  # the test body's own row of the pair loop adds its (empty) sum
+        ay = _row(g, ACC + 1, lane) + 0.0
+        az = _row(g, ACC + 2, lane) + 0.0
+        x, y, z = _row(g, JP, lane), _row(g, JP + 1, lane), _row(g, JP + 2, lane)
+        ax = ax - acc_com_x
+        ay = ay - acc_com_y
+        az = az - acc_com_z
+        r2 = x * x + y * y + z * z
+        k = mu_t / (r2 * math.sqrt(r2))
+        ax += k * x
+        ay += k * y
+        az += k * z
+        g[JV * LANES + lane] += dt * ax
+        g[(JV + 1) * LANES + lane] += dt * ay
+        g[(JV + 2) * LANES + lane] += dt * az
+    for c in range(3):
+        com = rec[s, R_HALF_DCOM + c]
+        for lane in range(LANES):
+            g[(DIPOS + c) * LANES + lane] = _row(g, DJP + c, lane) + _row(g, SCALE, lane) * com
+    _tangent_row_lanes(g, IPOS, DIPOS, DACC, rec, s, V_KICK_POS, V_KICK_DPOS, q, m, G, eps2)
+    dacc_com_x, dacc_com_y, dacc_com_z = rec[s, R_DACC_COM], rec[s, R_DACC_COM + 1], rec[s, R_DACC_COM + 2]
+    for lane in range(LANES):
+        scale = _row(g, SCALE, lane)
+        dax = _row(g, DACC, lane) - scale * dacc_com_x
+        day = _row(g, DACC + 1, lane) - scale * dacc_com_y
+        daz = _row(g, DACC + 2, lane) - scale * dacc_com_z
+        x, y, z = _row(g, JP, lane), _row(g, JP + 1, lane), _row(g, JP + 2, lane)
+        dx, dy, dz = _row(g, DJP, lane), _row(g, DJP + 1, lane), _row(g, DJP + 2, lane)
+        rj2i = 1.0 / (x * x + y * y + z * z)
+        rj3iM = math.sqrt(rj2i) * rj2i * mu_t
+        prefac1 = dt * rj3iM
+        rdr = dx * x + dy * y + dz * z
+        prefac2 = -dt * 3.0 * rdr * (rj3iM * rj2i)
+        dvx = _row(g, DJV, lane) + (prefac1 * dx + prefac2 * x)
+        dvy = _row(g, DJV + 1, lane) + (prefac1 * dy + prefac2 * y)
+        dvz = _row(g, DJV + 2, lane) + (prefac1 * dz + prefac2 * z)
+        g[DJV * LANES + lane] = dvx + dt * dax
+        g[(DJV + 1) * LANES + lane] = dvy + dt * day
+        g[(DJV + 2) * LANES + lane] = dvz + dt * daz
+
+
 @jit
 def pixel_block_lanes(g, whole, q, m, G, eps2, dt, mu_t, rec, n_rec, step0, t_start, radius, radii, escape_r2,
                       check_collisions):
@@ -263,73 +329,15 @@ def pixel_block_lanes(g, whole, q, m, G, eps2, dt, mu_t, rec, n_rec, step0, t_st
                     g[STOP_CODE * LANES + lane] = KEPLER_FAILED
                     g[STOP_STEP * LANES + lane] = s + 1.0
             return 0
-        failed = drift_lanes(g, views, mu_t, half)
-        _stop_lanes(g, failed, s)
-        live_lanes -= failed
-        # the kick (interaction_kick, then interaction_kick_tangent's part for body p)
-        for c in range(3):
-            com = rec[s, R_HALF_COM + c]
-            for lane in range(LANES):
-                g[(IPOS + c) * LANES + lane] = _row(g, JP + c, lane) + com
-                g[(ACC + c) * LANES + lane] = 0.0
-        for i in range(q):
-            px, py, pz = (record_value(rec, s, V_KICK_POS, q, 0, i), record_value(rec, s, V_KICK_POS, q, 1, i),
-                          record_value(rec, s, V_KICK_POS, q, 2, i))
-            mass = m[i]
-            for lane in range(LANES):
-                dx = _row(g, IPOS, lane) - px
-                dy = _row(g, IPOS + 1, lane) - py
-                dz = _row(g, IPOS + 2, lane) - pz
-                r2 = dx * dx + dy * dy + dz * dz + eps2
-                g_r3 = G / (r2 * math.sqrt(r2))
-                mi = mass * g_r3
-                g[ACC * LANES + lane] -= mi * dx
-                g[(ACC + 1) * LANES + lane] -= mi * dy
-                g[(ACC + 2) * LANES + lane] -= mi * dz
-        acc_com_x, acc_com_y, acc_com_z = rec[s, R_ACC_COM], rec[s, R_ACC_COM + 1], rec[s, R_ACC_COM + 2]
-        for lane in range(LANES):
-            ax = _row(g, ACC, lane) + 0.0  # the test body's own row of the pair loop adds its (empty) sum
-            ay = _row(g, ACC + 1, lane) + 0.0
-            az = _row(g, ACC + 2, lane) + 0.0
-            x, y, z = _row(g, JP, lane), _row(g, JP + 1, lane), _row(g, JP + 2, lane)
-            ax = ax - acc_com_x
-            ay = ay - acc_com_y
-            az = az - acc_com_z
-            r2 = x * x + y * y + z * z
-            k = mu_t / (r2 * math.sqrt(r2))
-            ax += k * x
-            ay += k * y
-            az += k * z
-            g[JV * LANES + lane] += dt * ax
-            g[(JV + 1) * LANES + lane] += dt * ay
-            g[(JV + 2) * LANES + lane] += dt * az
-        for c in range(3):
-            com = rec[s, R_HALF_DCOM + c]
-            for lane in range(LANES):
-                g[(DIPOS + c) * LANES + lane] = _row(g, DJP + c, lane) + _row(g, SCALE, lane) * com
-        _tangent_row_lanes(g, IPOS, DIPOS, DACC, rec, s, V_KICK_POS, V_KICK_DPOS, q, m, G, eps2)
-        dacc_com_x, dacc_com_y, dacc_com_z = rec[s, R_DACC_COM], rec[s, R_DACC_COM + 1], rec[s, R_DACC_COM + 2]
-        for lane in range(LANES):
-            scale = _row(g, SCALE, lane)
-            dax = _row(g, DACC, lane) - scale * dacc_com_x
-            day = _row(g, DACC + 1, lane) - scale * dacc_com_y
-            daz = _row(g, DACC + 2, lane) - scale * dacc_com_z
-            x, y, z = _row(g, JP, lane), _row(g, JP + 1, lane), _row(g, JP + 2, lane)
-            dx, dy, dz = _row(g, DJP, lane), _row(g, DJP + 1, lane), _row(g, DJP + 2, lane)
-            rj2i = 1.0 / (x * x + y * y + z * z)
-            rj3iM = math.sqrt(rj2i) * rj2i * mu_t
-            prefac1 = dt * rj3iM
-            rdr = dx * x + dy * y + dz * z
-            prefac2 = -dt * 3.0 * rdr * (rj3iM * rj2i)
-            dvx = _row(g, DJV, lane) + (prefac1 * dx + prefac2 * x)
-            dvy = _row(g, DJV + 1, lane) + (prefac1 * dy + prefac2 * y)
-            dvz = _row(g, DJV + 2, lane) + (prefac1 * dz + prefac2 * z)
-            g[DJV * LANES + lane] = dvx + dt * dax
-            g[(DJV + 1) * LANES + lane] = dvy + dt * day
-            g[(DJV + 2) * LANES + lane] = dvz + dt * daz
-        failed = drift_lanes(g, views, mu_t, half)
-        _stop_lanes(g, failed, s)
-        live_lanes -= failed
+        # drift, kick, drift; the two drifts are one call site, so drift_lanes (the kernel's longest code) is
+        # inlined, and compiled, once
+        for phase in range(2):
+            failed = drift_lanes(g, views, mu_t, half)
+            _stop_lanes(g, failed, s)
+            live_lanes -= failed
+            if phase == 1:
+                break
+            _kick_lanes(g, rec, s, q, m, G, eps2, dt, mu_t)
         # the end of the step, for the live lanes: back to inertial coordinates
         for c in range(3):
             com, vcom = rec[s, R_END_COM + c], rec[s, R_END_VCOM + c]

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit_inline, jit_parallel_exact
+from orbitsim._jit import jit, jit_parallel_exact
 from orbitsim.chaos.megno import MegnoState, lyapunov, megno_value
 from orbitsim.ensemble.kernels import _energy, jacobi_elements_ae
 from orbitsim.ensemble.lanes import (
@@ -67,26 +67,41 @@ from orbitsim.ensemble.status import COMPLETE, DELTA_A, DIVERGED, ENERGY_ERROR, 
 from orbitsim.physics.coordinates import inertial_to_jacobi
 
 
-@jit_inline
-def _finish_pixel(k, status, n_steps_done, t_start, dt, megno, max_e, delta_a, e0, pos, vel, m, G, rows, out):
-    """A stopped (or finished) pixel's indicator row, as :func:`run_system_variational` writes it; ``pos``,
-    ``vel`` (3, N) hold its whole state at the stop."""
-    t = t_start + n_steps_done * dt
-    out[k, SURVIVAL_TIME] = t
-    out[k, MAX_E] = max_e
-    out[k, DELTA_A] = delta_a
-    out[k, MEGNO] = megno_value(megno, t)
-    out[k, LYAPUNOV] = lyapunov(megno)
-    if status == DIVERGED:
-        out[k, ENERGY_ERROR] = np.nan
-    else:
-        out[k, ENERGY_ERROR] = abs((_energy(pos, vel, m, G, rows) - e0) / e0)
+@jit
+def _start_group(g, grp, pos, vel, dpos, dvel, m, G, weights, mu, watch, rows, jscratch, e0):
+    """Fill group ``grp``'s lanes from its pixels (their test bodies, start elements and energy ``e0``);
+    lanes past the last pixel are padding: a copy of the group's first pixel, never live."""
+    n_sys = pos.shape[0]
+    q = pos.shape[2] - 1
+    for lane in range(LANES):
+        k = grp * LANES + lane
+        real = k < n_sys
+        if not real:
+            k = grp * LANES
+        else:
+            e0[k] = _energy(pos[k], vel[k], m[k], G, rows)
+        inertial_to_jacobi(pos[k], weights[k], jscratch[0])
+        inertial_to_jacobi(vel[k], weights[k], jscratch[1])
+        a0, e_start = jacobi_elements_ae(jscratch[0], jscratch[1], mu[k], watch)
+        g[TRACK_A0 * LANES + lane] = a0
+        g[TRACK_MAX_E * LANES + lane] = e_start
+        g[SCALE * LANES + lane] = 1.0
+        g[LIVE * LANES + lane] = 1.0 if real else -1.0
+        for c in range(3):
+            g[(TP + c) * LANES + lane] = pos[k, c, q]
+            g[(TV + c) * LANES + lane] = vel[k, c, q]
+            g[(TDP + c) * LANES + lane] = dpos[k, c, q]
+            g[(TDV + c) * LANES + lane] = dvel[k, c, q]
 
 
-@jit_inline
-def _place(pos, vel, k, q, mpos, mvel, rec, row, g, lane):
-    """Whole state of pixel ``k``: the massive bodies from ``rec`` row ``row`` (or ``mpos``, ``mvel`` when
-    ``row`` < 0) and the test body (column q) from lane ``lane`` of the group ``g``."""
+@jit
+def _write_out(g, lane, k, code, n_steps_done, megno_steps, mpos, mvel, rec, row, t_start, dt, e0, m, G, rows, pos,
+               vel, status, steps, out):
+    """Pixel ``k`` (lane ``lane`` of ``g``) has stopped, or finished, after ``n_steps_done`` steps, its MEGNO
+    sums after ``megno_steps``: its whole state (the massive bodies from ``rec`` row ``row``, or ``mpos``,
+    ``mvel`` when ``row`` < 0), status, steps and indicator row, as
+    :func:`orbitsim.ensemble.kernels.run_system_variational` writes them."""
+    q = pos.shape[2] - 1
     for c in range(3):
         for i in range(q):
             if row < 0:
@@ -97,13 +112,21 @@ def _place(pos, vel, k, q, mpos, mvel, rec, row, g, lane):
                 vel[k, c, i] = record_value(rec, row, V_VEL, q, c, i)
         pos[k, c, q] = g[(TP + c) * LANES + lane]
         vel[k, c, q] = g[(TV + c) * LANES + lane]
-
-
-@jit_inline
-def _megno_of(g, lane, t_start, n):
-    """The MegnoState of a lane after ``n`` steps."""
-    return MegnoState(g[M_YS * LANES + lane], g[M_YSS * LANES + lane], g[M_COV_YT * LANES + lane],
-                      g[M_VAR_T * LANES + lane], g[M_MEAN_T * LANES + lane], g[M_MEAN_Y * LANES + lane], t_start, n)
+    status[k] = code
+    steps[k] = n_steps_done
+    megno = MegnoState(g[M_YS * LANES + lane], g[M_YSS * LANES + lane], g[M_COV_YT * LANES + lane],
+                       g[M_VAR_T * LANES + lane], g[M_MEAN_T * LANES + lane], g[M_MEAN_Y * LANES + lane], t_start,
+                       megno_steps)
+    t = t_start + n_steps_done * dt
+    out[k, SURVIVAL_TIME] = t
+    out[k, MAX_E] = g[TRACK_MAX_E * LANES + lane]
+    out[k, DELTA_A] = g[TRACK_DELTA_A * LANES + lane]
+    out[k, MEGNO] = megno_value(megno, t)
+    out[k, LYAPUNOV] = lyapunov(megno)
+    if code == DIVERGED:
+        out[k, ENERGY_ERROR] = np.nan
+    else:
+        out[k, ENERGY_ERROR] = abs((_energy(pos[k], vel[k], m[k], G, rows) - e0) / e0)
 
 
 @jit_parallel_exact
@@ -137,29 +160,13 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
     groups = np.zeros((n_groups, NROWS * LANES))
     whole = np.zeros((n_groups, LANES, 3, 3, n))  # a rescaled lane's whole tangent state, for MEGNO and rescaling
     e0 = np.zeros(n_sys)
-    jfull = np.zeros((n_sys, 2, 3, n))
-    for k in prange(n_sys):
-        e0[k] = _energy(pos[k], vel[k], m[k], G, rows)
-        inertial_to_jacobi(pos[k], weights[k], jfull[k, 0])
-        inertial_to_jacobi(vel[k], weights[k], jfull[k, 1])
+    jscratch = np.zeros((n_groups, 2, 3, n))
+    # the helpers take np.int64 arguments: a prange index, and a literal, are typed otherwise inside a parfor
+    # than outside it, and each type would compile a helper once more
     for grp in prange(n_groups):
-        g = groups[grp]
-        for lane in range(LANES):
-            k = grp * LANES + lane
-            real = k < n_sys
-            if not real:
-                k = grp * LANES  # padding: a copy of the group's first pixel, never live
-            a0, e_start = jacobi_elements_ae(jfull[k, 0], jfull[k, 1], mu[k], watch)
-            g[TRACK_A0 * LANES + lane] = a0
-            g[TRACK_MAX_E * LANES + lane] = e_start
-            g[SCALE * LANES + lane] = 1.0
-            g[LIVE * LANES + lane] = 1.0 if real else -1.0
-            for c in range(3):
-                g[(TP + c) * LANES + lane] = pos[k, c, q]
-                g[(TV + c) * LANES + lane] = vel[k, c, q]
-                g[(TDP + c) * LANES + lane] = dpos[k, c, q]
-                g[(TDV + c) * LANES + lane] = dvel[k, c, q]
-    done = 0
+        _start_group(groups[grp], np.int64(grp), pos, vel, dpos, dvel, m, G, weights, mu, watch, rows, jscratch[grp],
+                     e0)
+    done = np.int64(0)  # not the literal 0: pixel_block_lanes would compile once for Literal[int](0), once for int64
     while done < n_steps:
         for c in range(3):
             for i in range(q):
@@ -176,39 +183,26 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
             for lane in range(LANES):
                 if g[LIVE * LANES + lane] != 0.0:
                     continue
-                k = grp * LANES + lane
                 g[LIVE * LANES + lane] = -1.0
-                code = int(g[STOP_CODE * LANES + lane])
-                n_done = int(g[STOP_STEP * LANES + lane])
-                steps[k] = done + n_done
-                megno_steps = done + n_done
-                row = n_done - 1
-                if code == KEPLER_FAILED:
-                    code = DIVERGED
-                    row = n_done - 2  # the state before the failed step
-                    megno_steps -= 1
-                    _place(pos, vel, k, q, mprev_pos, mprev_vel, rec, row, g, lane)
+                k = np.int64(grp * LANES + lane)
+                code = np.int64(g[STOP_CODE * LANES + lane])
+                n_done = np.int64(g[STOP_STEP * LANES + lane])
+                if code == KEPLER_FAILED:  # the state before the failed step, which MEGNO's sums never saw
+                    _write_out(g, lane, k, np.int64(DIVERGED), done + n_done, done + n_done - 1, mprev_pos, mprev_vel,
+                               rec, n_done - 2, t_start, dt, e0[k], m, G, rows, pos, vel, status, steps, out)
                 else:
-                    _place(pos, vel, k, q, mpos, mvel, rec, row, g, lane)
-                status[k] = code
-                _finish_pixel(k, code, steps[k], t_start, dt, _megno_of(g, lane, t_start, megno_steps),
-                              g[TRACK_MAX_E * LANES + lane], g[TRACK_DELTA_A * LANES + lane], e0[k], pos[k], vel[k],
-                              m[k], G, rows, out)
+                    _write_out(g, lane, k, code, done + n_done, done + n_done, mpos, mvel, rec, n_done - 1, t_start, dt,
+                               e0[k], m, G, rows, pos, vel, status, steps, out)
         done += recorded
         if recorded == 0:
             break
     for grp in prange(n_groups):
         g = groups[grp]
         for lane in range(LANES):
-            if g[LIVE * LANES + lane] != 1.0:
-                continue
-            k = grp * LANES + lane
-            _place(pos, vel, k, q, mpos, mvel, rec, -1, g, lane)
-            steps[k] = n_steps
-            status[k] = COMPLETE
-            _finish_pixel(k, COMPLETE, n_steps, t_start, dt, _megno_of(g, lane, t_start, n_steps),
-                          g[TRACK_MAX_E * LANES + lane], g[TRACK_DELTA_A * LANES + lane], e0[k], pos[k], vel[k], m[k],
-                          G, rows, out)
+            if g[LIVE * LANES + lane] == 1.0:
+                k = np.int64(grp * LANES + lane)
+                _write_out(g, lane, k, np.int64(COMPLETE), n_steps, n_steps, mpos, mvel, rec, np.int64(-1), t_start, dt,
+                           e0[k], m, G, rows, pos, vel, status, steps, out)
     return True
 
 
