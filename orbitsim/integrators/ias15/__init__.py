@@ -297,7 +297,8 @@ def step(pos, vel, acc, m, force, dt, work):
     """Advance by one grid interval ``dt`` (adaptive steps inside it, or one constant step)."""
     clock = work.clock
     t = clock[CLOCK_T] if clock[CLOCK_STARTED] else 0.0
-    advance_grid(pos, vel, acc, m, force, work, t, dt, 0, 1, None)
+    # Grid points as run-time int64, as run() passes them: literals would compile advance_grid again.
+    advance_grid(pos, vel, acc, m, force, work, t, dt, np.int64(0), np.int64(1), None)
 
 
 @jit_inline

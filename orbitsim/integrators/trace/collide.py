@@ -185,10 +185,10 @@ def collide_set(pos, vel, m, radii, G, bodies, n_set, n_set_active, h, time, hit
             contacts += 1
             if resolve != RESOLVE_MERGE:
                 if not _seen(hits, collide, keep, lose):
-                    _record(hits, collide, keep, lose, time, r2, pos, vel, reach, False)
+                    _record(hits, collide, keep, lose, time, r2, pos, vel, reach, np.bool_(False))
                 b += 1
                 continue
-            row = _record(hits, collide, keep, lose, time, r2, pos, vel, reach, True)
+            row = _record(hits, collide, keep, lose, time, r2, pos, vel, reach, np.bool_(True))
             energy_out = merge_pair(pos, vel, m, radii, G, keep, lose)
             if row >= 0:
                 hits[row, H_ENERGY] = energy_out

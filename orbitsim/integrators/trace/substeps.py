@@ -11,9 +11,17 @@ Both run on the absolute clock from t (REBOUND's BS sub-steps do, and the clock'
 decide the last sub-step), with a fresh controller, and both differ from REBOUND's only in what
 REBOUND does with a collision that orbitsim resolves otherwise (:mod:`.collide`): a body
 that merged away stays in the arrays as a massless husk, out of the ODE, until the step ends.
+
+The ODE's kind and the flags go to :func:`.bs.bs_step` and :func:`_collide` as run-time values
+(``np.int64(ODE_NEWTON)``, ``np.bool_(False)``), not as the constants themselves: Numba types a
+module constant as a literal and compiles a callee once per literal, so the two loops compiled
+``bs_step`` and its midpoint step twice (8.7 s more CPU on a cold ``many_encounters`` run). The
+callees branch on the value at run time, with the same operations.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from orbitsim._jit import jit
 from orbitsim.integrators.ias15.core import CLOCK_DT_LAST_DONE, COUNT_ACCEPTED
@@ -121,8 +129,8 @@ def encounter_bs(pos, vel, m, G, softening2, n_active, dt, t, frames, rows, bs_r
                 rows[R_Y, 6 * k + 3 + c] = vel[c, bodies[k]]
         for c in range(3):
             rows[R_Y, 3 + c] = 0.0  # the star rests at the heliocentric origin
-        result = bs_step(rows, 6 * n_enc, h, bs_real, bs_int, ODE_ENCOUNTER, m, G, softening2, bodies, n_enc,
-                         n_enc_active, interacts, with_jump)
+        result = bs_step(rows, 6 * n_enc, h, bs_real, bs_int, np.int64(ODE_ENCOUNTER), m, G, softening2, bodies,
+                         n_enc, n_enc_active, interacts, with_jump)
         book[C_ENC_SUBSTEPS] += 1
         if result == BS_NAN:
             book[ST_STATUS] = STATUS_BS_NAN
@@ -141,7 +149,7 @@ def encounter_bs(pos, vel, m, G, softening2, n_active, dt, t, frames, rows, bs_r
                 vel[c, bodies[k]] = rows[R_Y, 6 * k + 3 + c]
         if accepted and search:
             n_enc, n_enc_active = _collide(pos, vel, m, G, bodies, n_enc, n_enc_active, taken, t_sub, radii, hits,
-                                           collide, bs_int, book, True)
+                                           collide, bs_int, book, np.bool_(True))
     if book[ST_TPONLY]:
         # Only test particles met massive bodies, which do not feel them: put the massive bodies
         # back exactly on their Kepler drift, so test particles never change them.
@@ -177,8 +185,8 @@ def full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real
             for c in range(3):
                 rows[R_Y, 6 * k + c] = pos[c, bodies[k]]
                 rows[R_Y, 6 * k + 3 + c] = vel[c, bodies[k]]
-        result = bs_step(rows, 6 * n_set, h, bs_real, bs_int, ODE_NEWTON, m, G, softening2, bodies, n_set,
-                         n_set_active, interacts, False)
+        result = bs_step(rows, 6 * n_set, h, bs_real, bs_int, np.int64(ODE_NEWTON), m, G, softening2, bodies, n_set,
+                         n_set_active, interacts, np.bool_(False))
         book[C_FULL_SUBSTEPS] += 1
         if result == BS_NAN:
             book[ST_STATUS] = STATUS_BS_NAN
@@ -196,7 +204,7 @@ def full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real
                 vel[c, bodies[k]] = rows[R_Y, 6 * k + 3 + c]
         if accepted and search:
             n_set, n_set_active = _collide(pos, vel, m, G, bodies, n_set, n_set_active, taken, t_sub, radii, hits,
-                                           collide, bs_int, book, False)
+                                           collide, bs_int, book, np.bool_(False))
     # Recomputes the centre of mass from the new state.
     inertial_to_dh(pos, vel, m, n_active, com)
 

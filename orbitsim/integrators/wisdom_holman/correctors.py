@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from orbitsim._jit import jit
+from orbitsim.forces.hooks import gravity_only
 from orbitsim.integrators.wisdom_holman.operators import (
     JACOBI,
     interaction_kick,
@@ -100,16 +101,23 @@ CORRECTOR_STAGES: dict[int, tuple[np.ndarray, np.ndarray]] = {p: _stages(p) for 
 
 
 @jit
-def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, kstage):
-    """One stage Z(a, b) = K(a) I(-b) K(-2a) I(b) K(a) (Jacobi); returns ``(status, body)``."""
+def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, kstage, kick_force):
+    """One stage Z(a, b) = K(a) I(-b) K(-2a) I(b) K(a) (Jacobi); returns ``(status, body)``.
+
+    ``kick_force``: a context without forces (:func:`~orbitsim.forces.hooks.gravity_only`): the
+    correctors' kicks are by gravity alone.
+    """
     status, body = kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    interaction_kick(jpos, jvel, m, G, eps2, -b, JACOBI, weights, mu, ipos, acc, None)
+    # JACOBI as a run-time int64, as the run's own kicks pass it (work.config): a literal would
+    # compile interaction_kick's pair loop a second time (Numba compiles a callee once per literal).
+    coordinates = np.int64(JACOBI)
+    interaction_kick(jpos, jvel, m, G, eps2, -b, coordinates, weights, mu, ipos, acc, kick_force)
     status, body = kepler_drift_bodies(jpos, jvel, mu, -2.0 * a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    interaction_kick(jpos, jvel, m, G, eps2, b, JACOBI, weights, mu, ipos, acc, None)
+    interaction_kick(jpos, jvel, m, G, eps2, b, coordinates, weights, mu, ipos, acc, kick_force)
     return kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
 
 
@@ -134,10 +142,12 @@ def apply_corrector(jpos, jvel, m, force, dt, inv, work):
     acc = work.iacc
     ks = work.kscratch
     kstage = work.kstage
+    kick_force = gravity_only(force)
     for s in range(stage_a.shape[0]):
         a = stage_a[s] * dt
         b = inv * stage_b[s] * dt
-        status, body = corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, kstage)
+        status, body = corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, kstage,
+                                       kick_force)
         if status != KEPLER_OK:
             return status, body
     return KEPLER_OK, 0

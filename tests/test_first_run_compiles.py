@@ -1,0 +1,71 @@
+"""A first run compiles each orbitsim kernel once (issue 28, item 6).
+
+Numba compiles a jitted function once per distinct tuple of argument types. Types that differ for no
+reason (a module constant passed as a literal beside the same value at run time, None beside a
+context without forces) make a cold run compile the same kernel twice: Wisdom-Holman's correctors
+compiled the interaction kick and its pair loop a second time (0.8 s of a 20 s first run), TRACE's two
+Bulirsch-Stoer loops compiled ``bs_step`` and its midpoint step twice (11 s). This runs a small
+Wisdom-Holman scenario with a corrector from an empty cache, in its own process (the cache
+directory is fixed at import), and fails on any orbitsim function compiled with more than one
+signature. Slow (about 20 s of CPU, all compilation), so it runs in ``make test-slow``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+WH_CORRECTED = """\
+name: wh_corrected
+integrator: {name: wisdom_holman, coordinates: jacobi, corrector: 11}
+dt: 0.01
+steps: 4
+output: {every: 2}
+bodies:
+  - {name: star, m: 1.0, x: [0, 0, 0], v: [0, 0, 0]}
+  - {name: inner, m: 1.0e-3, primary: star, a: 1.0, e: 0.1, M: 0}
+  - {name: outer, m: 1.0e-3, primary: star, a: 2.0, e: 0.05, M: 1}
+"""
+
+#: Runs the CLI in this process with a listener on Numba's compile events; prints, as JSON, each
+#: orbitsim function compiled and the argument types of each compilation.
+PROBE = """\
+import json, sys
+from numba.core import event
+seen = {}
+class Listener(event.Listener):
+    def on_start(self, ev):
+        d = ev.data["dispatcher"]
+        if d.py_func.__module__.startswith("orbitsim"):
+            name = d.py_func.__module__ + "." + d.py_func.__qualname__
+            seen.setdefault(name, []).append(str(ev.data["args"]))
+    def on_end(self, ev):
+        pass
+event.register("numba:compile", Listener())
+from click.testing import CliRunner
+from orbitsim.cli.main import cli
+result = CliRunner().invoke(cli, sys.argv[1:], catch_exceptions=False)
+print(json.dumps({"exit": result.exit_code, "output": result.output, "compiled": seen}))
+"""
+
+
+@pytest.mark.slow
+def test_a_cold_wisdom_holman_run_with_a_corrector_compiles_each_kernel_once(tmp_path: Path) -> None:
+    (tmp_path / "wh.yaml").write_text(WH_CORRECTED, encoding="utf-8")
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    env["ORBITSIM_CACHE_DIR"] = str(tmp_path / "cache")  # empty: every kernel is compiled here
+    ran = subprocess.run([sys.executable, "-c", PROBE, "run", "wh.yaml", "-q", "-o", "out.h5"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=600, env=env)
+    assert ran.returncode == 0, ran.stderr
+    report = json.loads(ran.stdout.splitlines()[-1])
+    assert report["exit"] == 0, report["output"]
+    compiled = report["compiled"]
+    # The run did compile (an empty cache), the corrector's kick among it.
+    assert "orbitsim.integrators.wisdom_holman.correctors.corrector_stage" in compiled, sorted(compiled)
+    twice = {name: sigs for name, sigs in compiled.items() if len(sigs) > 1}
+    assert not twice, json.dumps(twice, indent=1)
