@@ -20,6 +20,7 @@ runs it alone and draws REBOUND's MEGNO map beside orbitsim's map.
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import subprocess
 import sys
@@ -39,7 +40,9 @@ from orbitsim.simulation import Simulation
 YEAR = 365.25 * 0.01720209895  # one year in the scenario's time unit (G = 1, 1/k days)
 
 
+@functools.lru_cache(maxsize=1)
 def _base() -> Any:
+    """The bundled scenario, read once per process (REBOUND's pixels time REBOUND, not orbitsim's reader)."""
     return load_scenario("jupiter_saturn")
 
 

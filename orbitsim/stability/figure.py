@@ -18,7 +18,7 @@ __all__ = ["INDICATOR_LABELS", "draw_map"]
 
 #: Colour-bar labels; ``{t}`` is the time unit.
 INDICATOR_LABELS = {
-    "megno": "MEGNO <Y> (2: quasi-periodic, > 2: chaotic)",
+    "megno": "MEGNO <Y>: 2 regular, > 2 chaotic (clipped to 1.8-4)",
     "lyapunov_time": "Lyapunov time [{t}]",
     "survival_time": "survival time [{t}]",
     "max_e": "largest eccentricity",
@@ -27,6 +27,10 @@ INDICATOR_LABELS = {
 }
 #: Colours of the stopped pixels, by status name.
 STATUS_COLOURS = {"escaped": "#d62728", "collided": "#ff7f0e", "diverged": "#7f7f7f"}
+#: Colour ranges that clip an indicator as the literature draws it (REBOUND's MEGNO maps: 1.8 to 4), so
+#: that the few pixels with MEGNO in the hundreds do not wash the regular-chaotic boundary out; the values
+#: in map.h5 are never clipped, and the colour bar's ends say that the range was.
+_CLIPPED = {"megno": (1.8, 4.0)}
 #: Indicators drawn on a logarithmic colour scale.
 _LOG = ("lyapunov_time", "delta_a", "energy_error", "survival_time")
 
@@ -45,7 +49,7 @@ def draw_map(path: str | os.PathLike, data: dict[str, Any], indicator: str) -> N
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415 - lazy: as above
     from matplotlib.collections import PolyCollection  # noqa: PLC0415 - lazy: as above
-    from matplotlib.colors import ListedColormap, LogNorm  # noqa: PLC0415 - lazy: as above
+    from matplotlib.colors import ListedColormap, LogNorm, Normalize  # noqa: PLC0415 - lazy: as above
     from matplotlib.patches import Patch  # noqa: PLC0415 - lazy: as above
 
     grid = np.asarray(data["indicators"][indicator], dtype=np.float64)
@@ -74,9 +78,13 @@ def draw_map(path: str | os.PathLike, data: dict[str, Any], indicator: str) -> N
         xe, ye = _edges(x["values"], bool(x["log"])), _edges(y["values"], bool(y["log"]))
         positive = shown[np.isfinite(shown) & (shown > 0)]
         norm = LogNorm(vmin=positive.min(), vmax=positive.max()) if use_log and positive.size else None
-        mesh = ax.pcolormesh(xe, ye, shown if norm is None else np.where(shown > 0, shown, np.nan),
+        extend = "neither"
+        if indicator in _CLIPPED:
+            norm = Normalize(*_CLIPPED[indicator], clip=False)
+            extend = "both"
+        mesh = ax.pcolormesh(xe, ye, shown if norm is None or not use_log else np.where(shown > 0, shown, np.nan),
                              cmap="viridis", norm=norm, shading="flat")
-        fig.colorbar(mesh, ax=ax, label=label)
+        fig.colorbar(mesh, ax=ax, label=label, extend=extend)
         for name, colour in STATUS_COLOURS.items():
             hit = status == names.index(name)
             if hit.any():
