@@ -16,8 +16,8 @@ the lanes take the common case and a lane that is not in it is redone by the sca
   stopping when its residual settles; a lane that is not a short step, leaves the series range, does not
   settle in :data:`NEWTON_FAST_ITERATIONS` or needs a quartered G6 is redone from its start by
   :func:`orbitsim.integrators.wisdom_holman.tangent.kepler_drift_tangent`;
-* MEGNO's sums of a rescaled pixel, the rescaling itself, and the stop statuses are per-lane scalar code
-  (rare, or cheap).
+* MEGNO's sums of a rescaled pixel and the rescaling itself are per-lane scalar code (rare); the stop
+  tests, like the rest, are loops over the lanes, each lane's status the scalar test's precedence.
 
 A lane stops alone (its status and step in :data:`STOP_CODE`, :data:`STOP_STEP`); its state rows are then
 no longer written, and it is no longer solved, so it cannot slow or poison the others.
