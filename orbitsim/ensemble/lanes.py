@@ -32,8 +32,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from orbitsim._jit import jit, jit_inline
 from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, deltad_delta_sums, megno_update, rescale_power_of_two
 from orbitsim.ensemble.kernels import elements_ae
@@ -72,6 +70,7 @@ from orbitsim.physics.kepler_solver import (
     setup_short,
     stiefel_short,
 )
+from orbitsim.physics.tangent import pair_tangent_acceleration
 
 #: Pixels per group: 16 doubles, two AVX-512 registers (four AVX2 ones); 8 gained less, 32 no more.
 LANES = 16
@@ -195,25 +194,10 @@ def _tangent_row_lanes(g, pos_row, dpos_row, out_row, rec, s, pos_block, dpos_bl
         gmj = G * m[j]
         for lane in range(LANES):
             scale = _row(g, SCALE, lane)
-            dx = _row(g, pos_row, lane) - px
-            dy = _row(g, pos_row + 1, lane) - py
-            dz = _row(g, pos_row + 2, lane) - pz
-            r2 = dx * dx + dy * dy + dz * dz + eps2
-            r = np.sqrt(r2)
-            r3inv = 1.0 / (r2 * r)
-            r5inv = 3.0 * r3inv / r2
-            ddx = _row(g, dpos_row, lane) - scale * qx
-            ddy = _row(g, dpos_row + 1, lane) - scale * qy
-            ddz = _row(g, dpos_row + 2, lane) - scale * qz
-            dxdx = dx * dx * r5inv - r3inv
-            dydy = dy * dy * r5inv - r3inv
-            dzdz = dz * dz * r5inv - r3inv
-            dxdy = dx * dy * r5inv
-            dxdz = dx * dz * r5inv
-            dydz = dy * dz * r5inv
-            dax = ddx * dxdx + ddy * dxdy + ddz * dxdz
-            day = ddx * dxdy + ddy * dydy + ddz * dydz
-            daz = ddx * dxdz + ddy * dydz + ddz * dzdz
+            dax, day, daz = pair_tangent_acceleration(
+                _row(g, pos_row, lane) - px, _row(g, pos_row + 1, lane) - py, _row(g, pos_row + 2, lane) - pz,
+                _row(g, dpos_row, lane) - scale * qx, _row(g, dpos_row + 1, lane) - scale * qy,
+                _row(g, dpos_row + 2, lane) - scale * qz, eps2)
             g[out_row * LANES + lane] += gmj * dax
             g[(out_row + 1) * LANES + lane] += gmj * day
             g[(out_row + 2) * LANES + lane] += gmj * daz

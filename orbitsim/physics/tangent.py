@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 
 #: Pair selection, as REBOUND's ``gravity_ignore_terms``: every pair ...
 ALL_PAIRS = 0
@@ -29,6 +29,25 @@ ALL_PAIRS = 0
 SKIP_PAIR_0_1 = 1
 #: ... no pair with body 0: the democratic heliocentric splitting's Kepler part holds them.
 SKIP_BODY_0 = 2
+
+
+@jit_inline
+def pair_tangent_acceleration(dx, dy, dz, ddx, ddy, ddz, eps2):
+    """The Jacobian of the pair acceleration ``-r / |r|^3`` (softened by ``eps2``) at ``r = (dx, dy, dz)``
+    applied to the relative tangent vector ``(ddx, ddy, ddz)``, before the factor G m."""
+    r2 = dx * dx + dy * dy + dz * dz + eps2
+    r = math.sqrt(r2)  # math.sqrt: numba-cuda lacks the numpy sqrt ufunc (the GPU ensemble calls this)
+    r3inv = 1.0 / (r2 * r)
+    r5inv = 3.0 * r3inv / r2
+    dxdx = dx * dx * r5inv - r3inv
+    dydy = dy * dy * r5inv - r3inv
+    dzdz = dz * dz * r5inv - r3inv
+    dxdy = dx * dy * r5inv
+    dxdz = dx * dz * r5inv
+    dydz = dy * dz * r5inv
+    return (ddx * dxdx + ddy * dxdy + ddz * dxdz,
+            ddx * dxdy + ddy * dydy + ddz * dydz,
+            ddx * dxdz + ddy * dydz + ddz * dzdz)
 
 
 @jit
@@ -49,22 +68,8 @@ def tangent_accelerations(pos, m, G, eps2, dpos, dacc, skip):
             dx = pos[0, i] - pos[0, j]
             dy = pos[1, i] - pos[1, j]
             dz = pos[2, i] - pos[2, j]
-            r2 = dx * dx + dy * dy + dz * dz + eps2
-            r = math.sqrt(r2)  # math.sqrt: numba-cuda lacks the numpy sqrt ufunc (the GPU ensemble calls this)
-            r3inv = 1.0 / (r2 * r)
-            r5inv = 3.0 * r3inv / r2
-            ddx = dpos[0, i] - dpos[0, j]
-            ddy = dpos[1, i] - dpos[1, j]
-            ddz = dpos[2, i] - dpos[2, j]
-            dxdx = dx * dx * r5inv - r3inv
-            dydy = dy * dy * r5inv - r3inv
-            dzdz = dz * dz * r5inv - r3inv
-            dxdy = dx * dy * r5inv
-            dxdz = dx * dz * r5inv
-            dydz = dy * dz * r5inv
-            dax = ddx * dxdx + ddy * dxdy + ddz * dxdz
-            day = ddx * dxdy + ddy * dydy + ddz * dydz
-            daz = ddx * dxdz + ddy * dydz + ddz * dzdz
+            dax, day, daz = pair_tangent_acceleration(dx, dy, dz, dpos[0, i] - dpos[0, j], dpos[1, i] - dpos[1, j],
+                                                      dpos[2, i] - dpos[2, j], eps2)
             gmi = G * m[i]
             gmj = G * m[j]
             dacc[0, i] += gmj * dax
