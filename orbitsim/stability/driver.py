@@ -19,7 +19,15 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim.stability.plan import INDICATORS, ChunkResult, MapPlan, fingerprint, run_chunk
+from orbitsim.stability.plan import (
+    INDICATORS,
+    ChunkResult,
+    MapPlan,
+    chunk_states,
+    fingerprint,
+    run_chunk,
+    without_states,
+)
 from orbitsim.stability.store import MAP_FORMAT, MapParts, write_map
 
 __all__ = ["read_map", "run_map"]
@@ -36,7 +44,8 @@ def _on_dask(plan: MapPlan, todo: list[int], scheduler: str) -> Iterator[ChunkRe
     from orbitsim.batch.cluster import open_client  # noqa: PLC0415 - lazy: as above
 
     with open_client(scheduler) as client:
-        futures = [client.submit(run_chunk, plan, index, pure=False) for index in todo]
+        light = without_states(plan)  # each task carries its own chunk's start states, not the map's
+        futures = [client.submit(run_chunk, light, index, chunk_states(plan, index), pure=False) for index in todo]
         for future in as_completed(futures):
             yield future.result()
 

@@ -348,3 +348,23 @@ def test_a_gpu_map_of_a_scheme_without_a_gpu_variational_kernel_is_refused_in_on
     assert "\n" not in str(info.value) and "integrator 'leapfrog4'" in str(info.value)
     assert "wisdom_holman only" in str(info.value) and "without --device gpu" in str(info.value)
     assert make_plan(load_scenario(str(path)), doc, axes, 40.0, None, 256).integrator == "leapfrog4"  # the CPU runs it
+
+
+def test_the_plans_start_states_are_the_ones_each_chunk_would_build(scenario: Path):
+    # make_plan builds every pixel's start state once (its validation) and the chunks slice them; a Dask
+    # task's plan travels without them and builds its own chunk: the same bits either way, the last,
+    # partial chunk included (6 pixels in chunks of 4).
+    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.stability.axes import parse_axis
+    from orbitsim.stability.plan import chunk_states, fingerprint, make_plan, without_states
+
+    doc, _ = parse_yaml(scenario.read_text(encoding="utf-8"), str(scenario))
+    axes = [parse_axis("--x", "planet.a=7.0:8.0:3", doc), parse_axis("--y", "planet.e=0:0.3:2", doc)]
+    plan = make_plan(load_scenario(str(scenario)), doc, axes, 40.0, None, 4)
+    light = without_states(plan)
+    assert plan.states is not None and light.states is None and plan.states.masses.shape == (6, 5)
+    assert fingerprint(light) == fingerprint(plan)  # derived data: resuming on Dask finds the same map
+    for index in range(plan.n_chunks):
+        for kept, built in zip(chunk_states(plan, index), chunk_states(light, index), strict=True):
+            assert kept.shape[0] == (4 if index == 0 else 2)
+            assert np.array_equal(kept, built)
