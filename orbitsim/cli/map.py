@@ -191,11 +191,11 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
 def _hint_shared_massive(plan: MapPlan) -> None:
     """A massless varied body that is not the last one: say that listed last it would let the map step
     the massive bodies once for all pixels (orbitsim/ensemble/restricted.py)."""
-    from orbitsim.stability.plan import pixel_state
+    from orbitsim.stability.plan import chunk_states
 
     if plan.integrator != "wisdom_holman":
         return  # the shared massive bodies are the Wisdom-Holman ensemble's shortcut only
-    masses = pixel_state(plan, 0)[0]
+    masses = chunk_states(plan, 0).masses[0]
     body = plan.axes[0].index
     if len(masses) >= 3 and masses[body] == 0.0 and body != len(masses) - 1 and \
             all(axis.index == body for axis in plan.axes):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -24,7 +24,8 @@ from orbitsim.scenario.frames import AXES, rotate
 from orbitsim.scenario.quantities import ANGLE_UNITS, QuantityReader
 from orbitsim.units import AU_M, DAY_S, GAUSSIAN_YEAR_DAYS, UNIT_SYSTEMS
 
-__all__ = ["BodySet", "available_memory", "check_coincident", "read_bodies", "shift_to_barycentre"]
+__all__ = ["BodyPrefix", "BodySet", "available_memory", "check_coincident", "read_bodies", "read_body_prefix",
+           "shift_to_barycentre"]
 
 CARTESIAN_KEYS = ("name", "m", "x", "v", "r")
 ELEMENT_KEYS = ("name", "m", *ELEMENT_ONLY_KEYS, "r")
@@ -48,25 +49,39 @@ _NOTE_BODIES = 5
 _EPHEMERIS_SCALE = {"au-day-msun": ("au", "day"), "au-yr-msun": ("au", "gyr"), "si": ("m", "s")}
 
 
-def read_bodies(doc: Fields, G: float, units: str) -> BodySet:
-    """All bodies of a document, in source order ``ephemeris``, ``generator``, ``bodies``."""
-    angles = doc.string("angles", "deg", choices=ANGLE_UNITS, fold_case=True)
-    bodies = BodySet(reader=QuantityReader(units, angles, own_G=G != UNIT_SYSTEMS[units].G))
-    if doc.has("ephemeris"):
-        _read_ephemeris(Fields(doc.raw("ephemeris"), "ephemeris", EPHEMERIS_KEYS), G, units, bodies)
-    if doc.has("generator"):
-        specs = doc.raw("generator")
-        if isinstance(specs, list):
-            for i, spec in enumerate(specs):
-                _read_generator(spec, join_path("generator", i), G, bodies)
-        else:
-            _read_generator(specs, "generator", G, bodies)
+def read_bodies(doc: Fields, G: float, units: str, *, start: BodyPrefix | None = None,
+                stop: int | None = None) -> BodySet:
+    """All bodies of a document, in source order ``ephemeris``, ``generator``, ``bodies``.
+
+    ``stop``: read ``bodies[:stop]`` only (and skip the checks of a whole document), for a
+    :class:`BodyPrefix`. ``start``: continue from such a prefix of this same document (a copy of it is
+    filled): its ephemeris, generators and first ``start.count`` bodies are not read again, so a caller
+    that edits only later bodies (a stability map's pixels) reads only those, with the bits a whole read
+    gives them.
+    """
+    if start is None:
+        angles = doc.string("angles", "deg", choices=ANGLE_UNITS, fold_case=True)
+        bodies = BodySet(reader=QuantityReader(units, angles, own_G=G != UNIT_SYSTEMS[units].G))
+        first = 0
+        if doc.has("ephemeris"):
+            _read_ephemeris(Fields(doc.raw("ephemeris"), "ephemeris", EPHEMERIS_KEYS), G, units, bodies)
+        if doc.has("generator"):
+            specs = doc.raw("generator")
+            if isinstance(specs, list):
+                for i, spec in enumerate(specs):
+                    _read_generator(spec, join_path("generator", i), G, bodies)
+            else:
+                _read_generator(specs, "generator", G, bodies)
+    else:
+        bodies, first = start.bodies.copy(), start.count
     if doc.has("bodies"):
         items = doc.raw("bodies")
         if not isinstance(items, list):
             raise ScenarioError(f"expected a list of bodies, got {describe(items)}", key="bodies")
-        for i, item in enumerate(items):
-            _read_body(item, join_path("bodies", i), G, bodies)
+        for i in range(first, len(items) if stop is None else min(stop, len(items))):
+            _read_body(items[i], join_path("bodies", i), G, bodies)
+    if stop is not None:
+        return bodies
     if not bodies.names:
         raise ScenarioError("the scenario has no bodies: give a bodies list, an ephemeris or a generator")
     if bodies.no_anomaly:
@@ -75,6 +90,18 @@ def read_bodies(doc: Fields, G: float, units: str) -> BodySet:
         bodies.notes.append(f"no anomaly (M, f, l or theta) for {shown}{more}: f = 0, at pericentre (REBOUND's "
                             "default)")
     return bodies
+
+
+class BodyPrefix(NamedTuple):
+    """The bodies of a document read up to ``bodies[count]`` (:func:`read_body_prefix`)."""
+
+    bodies: BodySet
+    count: int
+
+
+def read_body_prefix(doc: Fields, G: float, units: str, count: int) -> BodyPrefix:
+    """The ephemeris, generators and ``bodies[:count]`` of ``doc``, for :func:`read_bodies`'s ``start``."""
+    return BodyPrefix(read_bodies(doc, G, units, stop=count), count)
 
 
 def _body_name(body: Fields) -> str:

@@ -7,6 +7,7 @@ primary is looked up here), so that neither imports the other to know what it is
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -51,6 +52,13 @@ class BodySet:
         self.masses.append(np.asarray(m, dtype=np.float64).reshape(-1))
         self.positions.append(np.asarray(x, dtype=np.float64).reshape(-1, 3))
         self.velocities.append(np.asarray(v, dtype=np.float64).reshape(-1, 3))
+
+    def copy(self) -> BodySet:
+        """A copy to read more bodies into; the bodies' arrays are shared (nothing writes into them)."""
+        return dataclasses.replace(self, names=list(self.names), masses=list(self.masses),
+                                   positions=list(self.positions), velocities=list(self.velocities),
+                                   origins=list(self.origins), radii=dict(self.radii), notes=list(self.notes),
+                                   no_anomaly=list(self.no_anomaly), _index=dict(self._index))
 
     def find(self, name: str) -> tuple[float, np.ndarray, np.ndarray] | None:
         """Mass, position and velocity of an earlier body, or None."""

@@ -368,3 +368,35 @@ def test_the_plans_start_states_are_the_ones_each_chunk_would_build(scenario: Pa
         for kept, built in zip(chunk_states(plan, index), chunk_states(light, index), strict=True):
             assert kept.shape[0] == (4 if index == 0 else 2)
             assert np.array_equal(kept, built)
+
+
+@pytest.mark.parametrize("x_spec", ["planet.a=7.0:8.0:3", "jupiter.a=5.0:5.4:3", "jupiter.m=0.0005:0.002:3"])
+def test_a_pixel_reads_only_the_varied_bodies_with_the_bits_of_a_whole_read(scenario: Path, x_spec: str):
+    # The pixels reread only the bodies from the first varied one on (the bodies before it read once); a
+    # varied Jupiter is followed by Saturn and the planet, read again for every pixel: each pixel's state must
+    # be, bit for bit, what the scenario reader gives the whole edited document (pixel_state's old way).
+    from orbitsim.scenario.bodies import read_bodies, shift_to_barycentre
+    from orbitsim.scenario.fields import Fields
+    from orbitsim.scenario.loader import TOP_KEYS
+    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.stability.axes import parse_axis
+    from orbitsim.stability.plan import make_plan
+
+    text = scenario.read_text(encoding="utf-8").replace("units: nbody", "units: nbody\nframe: barycentric")
+    scenario.write_text(text, encoding="utf-8")
+    doc, _ = parse_yaml(text, str(scenario))
+    axes = [parse_axis("--x", x_spec, doc), parse_axis("--y", "planet.e=0:0.3:2", doc)]
+    plan = make_plan(load_scenario(str(scenario)), doc, axes, 40.0, None, 4)
+    assert plan.barycentric and plan.states is not None
+    for pixel in range(plan.n_pixels):
+        edited = dict(doc)
+        edited["bodies"] = [dict(b) for b in doc["bodies"]]
+        iy, ix = divmod(pixel, 3)
+        axes[0].apply(edited["bodies"][axes[0].index], float(axes[0].values[ix]))
+        axes[1].apply(edited["bodies"][axes[1].index], float(axes[1].values[iy]))
+        m, x, v = read_bodies(Fields(edited, "", TOP_KEYS, "scenario"), plan.G, "nbody").arrays()
+        x, v = shift_to_barycentre(m, x, v)
+        assert np.array_equal(plan.states.masses[pixel], m)
+        assert np.array_equal(plan.states.positions[pixel], x.T)
+        assert np.array_equal(plan.states.velocities[pixel], v.T)
+    assert len({plan.states.positions[p][0, axes[0].index] for p in range(3)}) == 3  # the axis did vary the body
