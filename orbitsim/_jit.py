@@ -159,10 +159,21 @@ def launch_threads() -> int:
     Machine code of a ``prange`` kernel loaded from the on-disk cache calls the layer's scheduler
     (``allocate_sched``), a symbol the loader resolves only once the layer has started. Compiling a
     parallel kernel starts it; loading one from the cache does not, and a process whose first parallel
-    call is a cached kernel aborts with "LLVM ERROR: Symbol not found: allocate_sched". Every front door
-    to a ``prange`` kernel calls this (or :func:`set_num_threads`, which does) before the kernel.
+    call is a cached kernel aborts with "LLVM ERROR: Symbol not found: allocate_sched". This module calls
+    it once when it is imported, before any kernel of the package can be loaded (see below); the front
+    doors to ``prange`` kernels still call it (or :func:`set_num_threads`, which does), which costs nothing.
     """
     return int(numba.get_num_threads())
+
+
+# The layer starts here, when the package's first kernel module is imported, not at each front door: a
+# plain @jit function that calls a prange kernel (gravity.accelerations, diagnostics.potential_energy)
+# and was compiled in a process that loaded that kernel from the cache (its first compile killed between
+# the two functions, or the kernel called on its own first) is cached with the layer's symbols in it, and
+# a process that loads it before the layer starts dies of SIGSEGV (numba #8578), whichever Python caller
+# reached it (tests/test_threading_layer.py). About 8 ms once per process; GNU OpenMP's pool is then up,
+# which matters only to a fork()ed child that runs a prange kernel (orbitsim forks none: Dask spawns).
+launch_threads()
 
 
 # -- the kernels' stop flag --------------------------------------------------------------------------
