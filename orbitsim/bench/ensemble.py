@@ -138,9 +138,9 @@ def ensemble_step_ns(k: int, steps: int) -> dict[str, float]:
 #: Largest relative distance (the bodies' distance from WHFast's over the system's largest distance) allowed
 #: between WHFast512's and WHFast's states after the same steps from the same start, above which a WHFast512
 #: time is not reported. The two are the same map in different arithmetic (hand-written AVX-512 assembly,
-#: its own Kepler solver and Jacobi transforms): for these systems at dt = 0.5 they differ by 7e-13 after
-#: 2e3 steps, 7e-12 after 2e4 and 2.6e-10 after 2e5 (round-off growing by Brouwer's law), while the scheme's
-#: own error at that dt (WHFast at dt against dt/2) is 5e-6, 7e-5 and 6e-4.
+#: its own Kepler solver and Jacobi transforms): for these systems at dt = 0.5 they differ by 2e-13 after
+#: 2e3 steps, 2e-12 after 2e4 and 1.4e-10 after 2e5 (round-off growing by Brouwer's law), while the scheme's
+#: own error at that dt (WHFast at dt against dt/2) is 2.5e-6, 3e-5 and 3e-4.
 WHFAST512_TOLERANCE = 1e-8
 
 
@@ -226,14 +226,15 @@ def side_by_side_step_ns(k: int, steps: int, rounds: int = 3, single_steps: int 
     """ns per system-step of the 4-body systems of :func:`_giants`, every contender in turn in each of
     ``rounds`` rounds in this process (lists, one value a round): orbitsim's ensemble of K systems x
     ``steps`` (:func:`~orbitsim.ensemble.run_ensemble`, whatever kernel it runs) on all of Numba's threads
-    and on one thread, orbitsim's single-system ``wisdom_holman`` and REBOUND's WHFast over
-    ``single_steps``, and :func:`whfast512_step_ns` over ``single_steps`` (under ``whfast512``: its lists
-    and largest disagreement with WHFast, or the reason it did not run)."""
+    (``NUMBA_NUM_THREADS``, whatever the caller set) and on one thread, orbitsim's single-system
+    ``wisdom_holman`` and REBOUND's WHFast over ``single_steps``, and :func:`whfast512_step_ns` over
+    ``single_steps`` (under ``whfast512``: its lists and largest disagreement with WHFast, or the reason it
+    did not run)."""
     import numba  # noqa: PLC0415 - lazy: loads numba
     import rebound  # noqa: PLC0415 - lazy: as above
 
     m, x, v, masses, pos, vel = _giants(k)
-    threads = numba.get_num_threads()
+    previous, threads = numba.get_num_threads(), int(numba.config.NUMBA_NUM_THREADS)
     run_ensemble(masses[:2], pos[:2], vel[:2], G=1.0, dt=0.5, n_steps=2)  # compile / load
     out: dict[str, Any] = {"k": k, "steps": steps, "single_steps": single_steps, "threads": threads,
                            "ensemble_threads_ns": [], "ensemble_1_thread_ns": [], "single_ns": [], "whfast_ns": []}
@@ -246,7 +247,7 @@ def side_by_side_step_ns(k: int, steps: int, rounds: int = 3, single_steps: int 
                 run_ensemble(masses, pos, vel, G=1.0, dt=0.5, n_steps=steps)
                 out[key].append((time.perf_counter() - started) / (k * steps) * 1e9)
             finally:
-                numba.set_num_threads(threads)
+                numba.set_num_threads(previous)
         sim = Simulation(m, x.T, v.T, "wisdom_holman", 0.5, 1.0, threads=1)
         list(sim.chunks(EveryPlan(10, 10)))  # compile / load, outside the clock
         started = time.perf_counter()

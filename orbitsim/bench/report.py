@@ -136,7 +136,7 @@ def _step_ns_side_by_side(s: dict[str, Any]) -> str:
         whfast512 = (f"WHFast512 N_systems = 1 {min(w['n_systems_1_ns']):.0f}, N_systems = 2 "
                      f"{min(w['n_systems_2_ns']):.0f} (agrees with WHFast to {w['max_rel_dx']:.1g} relative)")
     return (f"- ns per system-step side by side, best of {len(s['single_ns'])} rounds: ensemble of K = {s['k']} on "
-            f"{s['threads']} threads {min(s['ensemble_threads_ns']):.0f}, on 1 thread "
+            f"{s['threads']} thread{'s' if s['threads'] != 1 else ''} {min(s['ensemble_threads_ns']):.0f}, on 1 thread "
             f"{min(s['ensemble_1_thread_ns']):.0f}; one system over {s['single_steps']} steps: wisdom_holman "
             f"{min(s['single_ns']):.0f}, REBOUND WHFast {min(s['whfast_ns']):.0f}, {whfast512}")
 

@@ -89,7 +89,7 @@ def test_the_side_by_side_table_shows_the_reason_in_place_of_whfast512s_figure(m
 def test_whfast512_is_timed_where_it_runs_and_agrees_with_whfast():
     result = whfast512_step_ns(2000)
     assert result["n_systems_1_ns"] > 0.0 and result["n_systems_2_ns"] > 0.0
-    # measured 7e-13 after 2000 steps (WHFAST512_TOLERANCE says why); 0 would mean the same arithmetic
+    # measured 2e-13 after 2000 steps (WHFAST512_TOLERANCE says why); 0 would mean the same arithmetic
     assert 0.0 < result["max_rel_dx"] < WHFAST512_TOLERANCE
     refused = whfast512_step_ns(2000, tolerance=result["max_rel_dx"] / 2)
     assert isinstance(refused, str) and "disagrees with WHFast" in refused and "not timed" in refused
