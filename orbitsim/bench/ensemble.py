@@ -10,6 +10,11 @@ Side by side on this machine (issue 29's throughput target):
 * **ensemble**: ns per system-step of K = 4096 four-body systems (Sun, Jupiter, Saturn, Uranus) in the
   ensemble kernel, beside one system stepped by orbitsim's single-system Wisdom-Holman
   (``Simulation.chunks``) and by REBOUND's WHFast (``sim.steps``).
+* **side by side**: the same ns per system-step, every contender in turn in each of a few rounds
+  (:func:`side_by_side_step_ns`): the ensemble on all of Numba's threads and on one, the single-system
+  step, REBOUND's WHFast and REBOUND's WHFast512 (:func:`whfast512_step_ns`, ``N_systems`` 1 and 2: one
+  system, or two side by side in one AVX-512 register) where the REBOUND in use can run it; where it
+  cannot, the reason takes the figure's place.
 * **variational**: pixel-steps per second of the same K systems with their variational equations (what a
   map runs), the Wisdom-Holman ensemble beside the kick-drift ones (leapfrog, leapfrog4, verlet;
   :mod:`orbitsim.ensemble.kick_drift`), in one process, alternating rounds (the best of each kept).
@@ -94,13 +99,21 @@ def orbitsim_map(n: int, years: float, out: Path, indicator: str, warm: bool = T
         return wall, float(f.attrs["wall_time_s"]), float(f.attrs["kernel_time_s"])
 
 
-def ensemble_step_ns(k: int, steps: int) -> dict[str, float]:
-    import rebound  # noqa: PLC0415 - lazy: as above
-
+def _giants(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One 4-body system (Sun, Jupiter, Saturn, Uranus of the bundled ``giants``: ``m`` (N,), ``x``, ``v``
+    (3, N)) and K copies of it (masses (K, N), positions, velocities (K, 3, N)), Uranus's x stretched by
+    up to 1e-3 across the copies so that no two systems are the same."""
     sc = load_scenario("giants")
     m, x, v = sc.masses[:4], sc.positions[:4].T, sc.velocities[:4].T
     masses, pos, vel = np.tile(m, (k, 1)), np.tile(x, (k, 1, 1)), np.tile(v, (k, 1, 1))
     pos[:, 0, 3] *= 1.0 + 1e-3 * np.arange(k) / k
+    return m, x, v, masses, pos, vel
+
+
+def ensemble_step_ns(k: int, steps: int) -> dict[str, float]:
+    import rebound  # noqa: PLC0415 - lazy: as above
+
+    m, x, v, masses, pos, vel = _giants(k)
     run_ensemble(masses[:2], pos[:2], vel[:2], G=1.0, dt=0.5, n_steps=2)  # compile / load
     started = time.perf_counter()
     run_ensemble(masses, pos, vel, G=1.0, dt=0.5, n_steps=steps)
@@ -122,6 +135,141 @@ def ensemble_step_ns(k: int, steps: int) -> dict[str, float]:
     return {"ensemble": ensemble, "single": single, "rebound": reb}
 
 
+#: Largest relative distance (the bodies' distance from WHFast's over the system's largest distance) allowed
+#: between WHFast512's and WHFast's states after the same steps from the same start, above which a WHFast512
+#: time is not reported. The two are the same map in different arithmetic (hand-written AVX-512 assembly,
+#: its own Kepler solver and Jacobi transforms): for these systems at dt = 0.5 they differ by 2e-13 after
+#: 2e3 steps, 2e-12 after 2e4 and 1.4e-10 after 2e5 (round-off growing by Brouwer's law), while the scheme's
+#: own error at that dt (WHFast at dt against dt/2) is 2.5e-6, 3e-5 and 3e-4.
+WHFAST512_TOLERANCE = 1e-8
+
+
+def _rebound_systems(rebound: Any, m: np.ndarray, x: np.ndarray, v: np.ndarray, copies: int) -> Any:
+    """A REBOUND simulation (G = 1, dt = 0.5) holding ``copies`` copies of one system (``m`` (N,), ``x``,
+    ``v`` (3, N)), one after the other, central body first in each (WHFast512's ``N_systems`` layout)."""
+    sim = rebound.Simulation()
+    for _ in range(copies):
+        for i in range(m.size):
+            sim.add(m=float(m[i]), x=x[0, i], y=x[1, i], z=x[2, i], vx=v[0, i], vy=v[1, i], vz=v[2, i])
+    sim.dt = 0.5
+    return sim
+
+
+def whfast512_unavailable() -> str | None:
+    """Why the REBOUND in this process cannot run WHFast512 (None where it can): it is missing, too old,
+    or its CPU lacks AVX-512F/DQ. One step of a two-body system, as REBOUND's own tests check it."""
+    try:
+        import rebound  # noqa: PLC0415 - lazy: as above
+    except ImportError:
+        return "REBOUND is not installed"
+    version = getattr(rebound, "__version__", "(unknown version)")
+    if not getattr(rebound, "avx512_available", True):
+        return f"REBOUND {version}: this CPU lacks AVX-512F/DQ (rebound.avx512_available is False)"
+    try:
+        sim = rebound.Simulation()
+        sim.add(m=1.0)
+        sim.add(m=1e-3, x=1.0, vy=1.0)
+        sim.integrator = "whfast512"
+        sim.dt = 0.01
+        sim.exact_finish_time = 0
+        sim.integrator.concatenate_steps = 1
+        sim.steps(1)
+    except (RuntimeError, AttributeError, ValueError, getattr(rebound, "GenericError", RuntimeError)) as exc:
+        return f"REBOUND {version} cannot run WHFast512 here: {exc}"
+    return None
+
+
+def whfast512_step_ns(steps: int, tolerance: float = WHFAST512_TOLERANCE) -> dict[str, float] | str:
+    """ns per system-step of REBOUND's WHFast512 on one system of :func:`_giants` (``N_systems`` = 1) and
+    on two copies of it in one register (``N_systems`` = 2): ``steps`` steps in one call
+    (``concatenate_steps``, the state kept in registers, as REBOUND's docs advise), wall / (steps x
+    N_systems). Each system's end state is checked against WHFast's after the same steps (untimed).
+
+    Returns
+    -------
+    dict or str
+        ``n_systems_1_ns``, ``n_systems_2_ns`` and ``max_rel_dx`` (the largest disagreement with WHFast, see
+        :data:`WHFAST512_TOLERANCE`); or, where WHFast512 cannot run here or disagrees with WHFast by more
+        than ``tolerance``, one line saying why (no figure).
+    """
+    reason = whfast512_unavailable()
+    if reason is not None:
+        return reason
+    import rebound  # noqa: PLC0415 - lazy: as above
+
+    m, x, v = _giants(1)[:3]
+    reference = _rebound_systems(rebound, m, x, v, 1)
+    reference.integrator = "whfast"
+    reference.steps(steps)
+    expected = np.array([[p.x, p.y, p.z] for p in reference.particles])
+    result: dict[str, float] = {"max_rel_dx": 0.0}
+    for n_systems in (1, 2):
+        sim = _rebound_systems(rebound, m, x, v, n_systems)
+        sim.integrator = "whfast512"
+        sim.exact_finish_time = 0
+        sim.integrator.N_systems = n_systems
+        sim.integrator.concatenate_steps = steps
+        started = time.perf_counter()
+        sim.steps(1)
+        result[f"n_systems_{n_systems}_ns"] = (time.perf_counter() - started) / (steps * n_systems) * 1e9
+        got = np.array([[p.x, p.y, p.z] for p in sim.particles]).reshape(n_systems, m.size, 3)
+        scale = np.max(np.linalg.norm(expected, axis=1))
+        worst = float(np.max(np.linalg.norm(got - expected, axis=2)) / scale)
+        result["max_rel_dx"] = max(result["max_rel_dx"], worst)
+        if not worst <= tolerance:
+            return (f"WHFast512 (N_systems = {n_systems}) disagrees with WHFast by {worst:.2g} (relative) after "
+                    f"{steps} steps, more than {tolerance:g}: not timed")
+    return result
+
+
+def side_by_side_step_ns(k: int, steps: int, rounds: int = 3, single_steps: int = 200_000) -> dict[str, Any]:
+    """ns per system-step of the 4-body systems of :func:`_giants`, every contender in turn in each of
+    ``rounds`` rounds in this process (lists, one value a round): orbitsim's ensemble of K systems x
+    ``steps`` (:func:`~orbitsim.ensemble.run_ensemble`, whatever kernel it runs) on all of Numba's threads
+    (``NUMBA_NUM_THREADS``, whatever the caller set) and on one thread, orbitsim's single-system
+    ``wisdom_holman`` and REBOUND's WHFast over ``single_steps``, and :func:`whfast512_step_ns` over
+    ``single_steps`` (under ``whfast512``: its lists and largest disagreement with WHFast, or the reason it
+    did not run)."""
+    import numba  # noqa: PLC0415 - lazy: loads numba
+    import rebound  # noqa: PLC0415 - lazy: as above
+
+    m, x, v, masses, pos, vel = _giants(k)
+    previous, threads = numba.get_num_threads(), int(numba.config.NUMBA_NUM_THREADS)
+    run_ensemble(masses[:2], pos[:2], vel[:2], G=1.0, dt=0.5, n_steps=2)  # compile / load
+    out: dict[str, Any] = {"k": k, "steps": steps, "single_steps": single_steps, "threads": threads,
+                           "ensemble_threads_ns": [], "ensemble_1_thread_ns": [], "single_ns": [], "whfast_ns": []}
+    whfast512: dict[str, Any] | str = {"n_systems_1_ns": [], "n_systems_2_ns": [], "max_rel_dx": 0.0}
+    for _ in range(rounds):
+        for key, n_threads in (("ensemble_threads_ns", threads), ("ensemble_1_thread_ns", 1)):
+            numba.set_num_threads(n_threads)
+            try:
+                started = time.perf_counter()
+                run_ensemble(masses, pos, vel, G=1.0, dt=0.5, n_steps=steps)
+                out[key].append((time.perf_counter() - started) / (k * steps) * 1e9)
+            finally:
+                numba.set_num_threads(previous)
+        sim = Simulation(m, x.T, v.T, "wisdom_holman", 0.5, 1.0, threads=1)
+        list(sim.chunks(EveryPlan(10, 10)))  # compile / load, outside the clock
+        started = time.perf_counter()
+        list(sim.chunks(np.array([10 + single_steps])))
+        out["single_ns"].append((time.perf_counter() - started) / single_steps * 1e9)
+        rsim = _rebound_systems(rebound, m, x, v, 1)
+        rsim.integrator = "whfast"
+        started = time.perf_counter()
+        rsim.steps(single_steps)
+        out["whfast_ns"].append((time.perf_counter() - started) / single_steps * 1e9)
+        if isinstance(whfast512, dict):
+            measured = whfast512_step_ns(single_steps)
+            if isinstance(measured, str):
+                whfast512 = measured
+            else:
+                for key in ("n_systems_1_ns", "n_systems_2_ns"):
+                    whfast512[key].append(measured[key])
+                whfast512["max_rel_dx"] = max(whfast512["max_rel_dx"], measured["max_rel_dx"])
+    out["whfast512"] = whfast512
+    return out
+
+
 #: The schemes whose variational ensembles :func:`variational_pixel_steps` times side by side.
 VARIATIONAL_SCHEMES = ("wisdom_holman", "leapfrog", "leapfrog4", "verlet")
 
@@ -133,10 +281,7 @@ def variational_pixel_steps(k: int, steps: int, rounds: int = 2) -> dict[str, fl
     bodies, so the Wisdom-Holman ensemble runs its whole-system kernel, as the kick-drift ones do."""
     from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: beside its use
 
-    sc = load_scenario("giants")
-    m, x, v = sc.masses[:4], sc.positions[:4].T, sc.velocities[:4].T
-    masses, pos, vel = np.tile(m, (k, 1)), np.tile(x, (k, 1, 1)), np.tile(v, (k, 1, 1))
-    pos[:, 0, 3] *= 1.0 + 1e-3 * np.arange(k) / k
+    _, _, _, masses, pos, vel = _giants(k)
     dpos, dvel = random_initial_variation(4, 0)
     variation = (np.tile(dpos, (k, 1, 1)), np.tile(dvel, (k, 1, 1)))
     for name in VARIATIONAL_SCHEMES:  # compile / load
@@ -163,6 +308,7 @@ def run_ensemble_probe(group: Any) -> dict[str, Any]:
         large_s, _, large_kernel_s = (orbitsim_map(large, p["years"], out / "large", p["indicator"], warm=False)
                                       if large else (0.0, 0.0, 0.0))
     ns = ensemble_step_ns(p["k"], p["steps"])
+    side_by_side = side_by_side_step_ns(p["k"], p["steps"], rounds=2)
     variational = variational_pixel_steps(p["k"], p["steps"])
     return {"map_n": p["map_n"], "years": p["years"], "indicator": p["indicator"], "rebound_map_s": rebound_s,
             "orbitsim_map_s": orbitsim_s, "orbitsim_compute_s": compute_s,
@@ -170,4 +316,4 @@ def run_ensemble_probe(group: Any) -> dict[str, Any]:
             "ensemble_ns": ns["ensemble"], "single_ns": ns["single"], "rebound_ns": ns["rebound"],
             "large_map_n": large, "large_map_s": large_s, "large_kernel_s": large_kernel_s,
             "large_rebound_estimate_s": rebound_s * (large / p["map_n"]) ** 2,
-            "variational_pixel_steps_per_s": variational}
+            "variational_pixel_steps_per_s": variational, "step_ns_side_by_side": side_by_side}

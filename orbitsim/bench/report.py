@@ -126,6 +126,21 @@ def _kernels_table(p: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _step_ns_side_by_side(s: dict[str, Any]) -> str:
+    """One line of :func:`orbitsim.bench.ensemble.side_by_side_step_ns`'s result: the best of its rounds, and
+    WHFast512's figures or the reason it has none."""
+    w = s["whfast512"]
+    if isinstance(w, str):
+        whfast512 = f"WHFast512 not run: {w}"
+    else:
+        whfast512 = (f"WHFast512 N_systems = 1 {min(w['n_systems_1_ns']):.0f}, N_systems = 2 "
+                     f"{min(w['n_systems_2_ns']):.0f} (agrees with WHFast to {w['max_rel_dx']:.1g} relative)")
+    return (f"- ns per system-step side by side, best of {len(s['single_ns'])} rounds: ensemble of K = {s['k']} on "
+            f"{s['threads']} thread{'s' if s['threads'] != 1 else ''} {min(s['ensemble_threads_ns']):.0f}, on 1 thread "
+            f"{min(s['ensemble_1_thread_ns']):.0f}; one system over {s['single_steps']} steps: wisdom_holman "
+            f"{min(s['single_ns']):.0f}, REBOUND WHFast {min(s['whfast_ns']):.0f}, {whfast512}")
+
+
 def _probes(doc: dict[str, Any]) -> list[str]:
     out: list[str] = []
     for p in doc.get("probes", []):
@@ -155,6 +170,8 @@ def _probes(doc: dict[str, Any]) -> list[str]:
                            f"{_time(p['large_rebound_estimate_s'])}")
             out.append(f"- ns per system-step, 4 bodies: ensemble of K = {p['k']} {p['ensemble_ns']:.0f}, one system "
                        f"(wisdom_holman, 1 thread) {p['single_ns']:.0f}, REBOUND WHFast {p['rebound_ns']:.0f}")
+            if "step_ns_side_by_side" in p:
+                out.append(_step_ns_side_by_side(p["step_ns_side_by_side"]))
             rates = p.get("variational_pixel_steps_per_s", {})
             if rates:
                 out.append(f"- pixel-steps/s with the variational equations and MEGNO, K = {p['k']} 4-body systems, "

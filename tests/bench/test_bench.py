@@ -269,6 +269,9 @@ def test_the_ensemble_probe_times_both_codes():
                 "single_ns", "rebound_ns",
                 "large_map_s", "large_rebound_estimate_s"):
         assert result[key] > 0.0, key
+    side = result["step_ns_side_by_side"]
+    assert len(side["ensemble_1_thread_ns"]) == len(side["whfast_ns"]) == 2  # two rounds, every contender
+    assert isinstance(side["whfast512"], str) or min(side["whfast512"]["n_systems_2_ns"]) > 0.0
     rates = result["variational_pixel_steps_per_s"]
     assert set(rates) == {"wisdom_holman", "leapfrog", "leapfrog4", "verlet"}
     assert all(rate > 0.0 for rate in rates.values())
