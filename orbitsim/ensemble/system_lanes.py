@@ -26,6 +26,11 @@ A lane stops alone, at the step the scalar kernel stops (a failed drift, or the 
 non-finite, escaped, collided, with the scalar test's precedence); its state rows are no longer written. The
 synchronisation and energy error at the end are the scalar kernel's own code
 (:func:`~orbitsim.ensemble.kernels.finish_system`), once per system.
+
+Why one module: the block layout (the row constants) and the loops that index it are one piece, the scalar
+step written lane-wise part for part (drift, kick, elements, stop test), and read best beside each other;
+split, every part would import the layout and none could be read alone. The drift and the kick are called
+from one place each, so that their long code is inlined, and compiled, once.
 """
 
 from __future__ import annotations
