@@ -206,23 +206,27 @@ def _stop_failed_drifts(g, n, b, step):
 
 
 @jit_inline
-def kick_lanes(g, n, G, eps2, dt):
+def kick_lanes(g, n, G, eps2, dt, width):
     """:func:`orbitsim.integrators.wisdom_holman.operators.interaction_kick` (Jacobi) of every lane: the
     inertial positions, the pair accelerations, their Jacobi transform and the kick of the live lanes'
-    velocities, each the scalar kick's operations in its order."""
+    velocities, each the scalar kick's operations in its order. ``width`` is LANES (see :func:`run_group`)."""
     b0 = _block(0)
     # inertial positions: the centre of mass carried from body n-1 down to body 1 (jacobi_to_inertial)
     _copy_rows(g, _block(n - 1), CARRY, b0, JP, 3)
     for i in range(n - 1, 0, -1):
         base = _block(i)
         w = _row(base, WEIGHT)
-        for c in range(3):
-            jp, com_r, ip = _row(base, JP + c), _row(base, CARRY + c), _row(base, IPOS + c)
-            for lane in range(_U(LANES)):
-                rel = g[jp + lane]
-                com = g[com_r + lane] - g[w + lane] * rel
-                g[com_r + lane] = com
-                g[ip + lane] = rel + com
+        jx, jy, jz = _row(base, JP), _row(base, JP + 1), _row(base, JP + 2)
+        cx, cy, cz = _row(base, CARRY), _row(base, CARRY + 1), _row(base, CARRY + 2)
+        ix, iy, iz = _row(base, IPOS), _row(base, IPOS + 1), _row(base, IPOS + 2)
+        for lane in range(_U(LANES)):  # x, y and z in one loop: a loop this short alone is unrolled, not vectorised
+            weight = g[w + lane]
+            rel_x, rel_y, rel_z = g[jx + lane], g[jy + lane], g[jz + lane]
+            com_x = g[cx + lane] - weight * rel_x
+            com_y = g[cy + lane] - weight * rel_y
+            com_z = g[cz + lane] - weight * rel_z
+            g[cx + lane], g[cy + lane], g[cz + lane] = com_x, com_y, com_z
+            g[ix + lane], g[iy + lane], g[iz + lane] = rel_x + com_x, rel_y + com_y, rel_z + com_z
         if i > 1:
             _copy_rows(g, _block(i - 1), CARRY, base, CARRY, 3)
         else:
@@ -274,22 +278,27 @@ def kick_lanes(g, n, G, eps2, dt):
                 carry = _row(bi, CARRY + c)
                 for lane in range(_U(LANES)):
                     g[carry + lane] = 0.0
-        for c in range(3):
-            acc, carry = _row(bi, ACC + c), _row(bi, CARRY + c)
-            for lane in range(_U(LANES)):
-                g[acc + lane] += g[carry + lane]
+        accx, accy, accz = _row(bi, ACC), _row(bi, ACC + 1), _row(bi, ACC + 2)
+        cx, cy, cz = _row(bi, CARRY), _row(bi, CARRY + 1), _row(bi, CARRY + 2)
+        for lane in range(width):
+            g[accx + lane] += g[cx + lane]
+            g[accy + lane] += g[cy + lane]
+            g[accz + lane] += g[cz + lane]
     # their Jacobi transform (inertial_to_jacobi): the interior centre of mass carried from body 1 up
     _copy_rows(g, _block(1), CARRY, b0, ACC, 3)
     for i in range(1, n):
         base = _block(i)
         w = _row(base, WEIGHT)
-        for c in range(3):
-            acc, com_r = _row(base, ACC + c), _row(base, CARRY + c)
-            for lane in range(_U(LANES)):
-                com = g[com_r + lane]
-                rel = g[acc + lane] - com
-                g[acc + lane] = rel
-                g[com_r + lane] = com + g[w + lane] * rel
+        accx, accy, accz = _row(base, ACC), _row(base, ACC + 1), _row(base, ACC + 2)
+        cx, cy, cz = _row(base, CARRY), _row(base, CARRY + 1), _row(base, CARRY + 2)
+        for lane in range(_U(LANES)):
+            weight = g[w + lane]
+            com_x, com_y, com_z = g[cx + lane], g[cy + lane], g[cz + lane]
+            rel_x, rel_y, rel_z = g[accx + lane] - com_x, g[accy + lane] - com_y, g[accz + lane] - com_z
+            g[accx + lane], g[accy + lane], g[accz + lane] = rel_x, rel_y, rel_z
+            g[cx + lane] = com_x + weight * rel_x
+            g[cy + lane] = com_y + weight * rel_y
+            g[cz + lane] = com_z + weight * rel_z
         if i + 1 < n:
             _copy_rows(g, _block(i + 1), CARRY, base, CARRY, 3)
     # the kick: body 1's Kepler term cancels the (0, 1) pair; bodies i >= 2 add G M_i r'_i / |r'_i|^3
@@ -308,16 +317,17 @@ def kick_lanes(g, n, G, eps2, dt):
                 ax += k * x
                 ay += k * y
                 az += k * z
-                live = g[liver + lane] > 0.0
-                g[vx + lane] = g[vx + lane] + dt * ax if live else g[vx + lane]
-                g[vy + lane] = g[vy + lane] + dt * ay if live else g[vy + lane]
-                g[vz + lane] = g[vz + lane] + dt * az if live else g[vz + lane]
+                live, ux, uy, uz = g[liver + lane] > 0.0, g[vx + lane], g[vy + lane], g[vz + lane]
+                g[vx + lane] = ux + dt * ax if live else ux  # loaded before the select: no masked loads
+                g[vy + lane] = uy + dt * ay if live else uy
+                g[vz + lane] = uz + dt * az if live else uz
         else:
             for lane in range(_U(LANES)):
-                live = g[liver + lane] > 0.0
-                g[vx + lane] = g[vx + lane] + dt * g[accx + lane] if live else g[vx + lane]
-                g[vy + lane] = g[vy + lane] + dt * g[accy + lane] if live else g[vy + lane]
-                g[vz + lane] = g[vz + lane] + dt * g[accz + lane] if live else g[vz + lane]
+                live, ux, uy, uz = g[liver + lane] > 0.0, g[vx + lane], g[vy + lane], g[vz + lane]
+                ax, ay, az = g[accx + lane], g[accy + lane], g[accz + lane]
+                g[vx + lane] = ux + dt * ax if live else ux
+                g[vy + lane] = uy + dt * ay if live else uy
+                g[vz + lane] = uz + dt * az if live else uz
 
 
 @jit_inline
@@ -338,15 +348,15 @@ def _track_orbit_lanes(g, base):
 
 
 @jit_inline
-def _stop_test_lanes(g, n, escape_r2, check_collisions):
+def _stop_test_lanes(g, n, escape_r2, check_collisions, width):
     """:func:`orbitsim.ensemble.kernels._stop_reason` of every lane's inertial positions (IPOS, from the kick)
     as a rank carried from block 0 to block n - 1 (3 non-finite, 2 escaped, 1 collided, 0 none: the larger
-    wins, the scalar test's precedence); left in block 0's RANK row."""
+    wins, the scalar test's precedence); left in block 0's RANK row. ``width`` is LANES (see :func:`run_group`)."""
     b0 = _block(0)
     if check_collisions:  # pair (i, j) in j's block, with i's position and radius copied there
         for j in range(n):
             hit = _row(_block(j), HIT)
-            for lane in range(_U(LANES)):
+            for lane in range(width):
                 g[hit + lane] = 0.0
         for i in range(n):
             bi = _block(i)
@@ -357,17 +367,17 @@ def _stop_test_lanes(g, n, escape_r2, check_collisions):
                 xj, yj, zj = _row(bj, IPOS), _row(bj, IPOS + 1), _row(bj, IPOS + 2)
                 xi, yi, zi = _row(bj, OTHER), _row(bj, OTHER + 1), _row(bj, OTHER + 2)
                 ri, rj, hit = _row(bj, OTHER_S), _row(bj, RADIUS), _row(bj, HIT)
-                for lane in range(_U(LANES)):
+                for lane in range(width):
                     reach = g[ri + lane] + g[rj + lane]
                     dx = g[xj + lane] - g[xi + lane]
                     dy = g[yj + lane] - g[yi + lane]
                     dz = g[zj + lane] - g[zi + lane]
-                    met = reach > 0.0 and dx * dx + dy * dy + dz * dz < reach * reach
+                    met = (reach > 0.0) & (dx * dx + dy * dy + dz * dz < reach * reach)
                     g[hit + lane] = 1.0 if met else g[hit + lane]
     x0, y0, z0, rank = _row(b0, IPOS), _row(b0, IPOS + 1), _row(b0, IPOS + 2), _row(b0, RANK)
-    for lane in range(_U(LANES)):
-        finite = math.isfinite(g[x0 + lane]) and math.isfinite(g[y0 + lane]) and math.isfinite(g[z0 + lane])
-        g[rank + lane] = 0.0 if finite else 3.0
+    for lane in range(width):
+        x, y, z = g[x0 + lane], g[y0 + lane], g[z0 + lane]
+        g[rank + lane] = 0.0 if (math.isfinite(x) & math.isfinite(y) & math.isfinite(z)) else 3.0
     for b in range(1, n):
         base = _block(b)
         _copy_rows(g, base, OTHER, b0, IPOS, 3)
@@ -375,13 +385,13 @@ def _stop_test_lanes(g, n, escape_r2, check_collisions):
         x, y, z = _row(base, IPOS), _row(base, IPOS + 1), _row(base, IPOS + 2)
         xs, ys, zs = _row(base, OTHER), _row(base, OTHER + 1), _row(base, OTHER + 2)
         rank, hit = _row(base, RANK), _row(base, HIT)
-        for lane in range(_U(LANES)):
+        for lane in range(width):
             xb, yb, zb = g[x + lane], g[y + lane], g[z + lane]
             dx, dy, dz = xb - g[xs + lane], yb - g[ys + lane], zb - g[zs + lane]
             verdict, met = g[rank + lane], g[hit + lane] > 0.0
-            verdict = 1.0 if (check_collisions and met and verdict < 1.0) else verdict
-            verdict = 2.0 if (dx * dx + dy * dy + dz * dz > escape_r2 and verdict < 2.0) else verdict
-            finite = math.isfinite(xb) and math.isfinite(yb) and math.isfinite(zb)
+            verdict = 1.0 if (check_collisions & met & (verdict < 1.0)) else verdict
+            verdict = 2.0 if ((dx * dx + dy * dy + dz * dz > escape_r2) & (verdict < 2.0)) else verdict
+            finite = math.isfinite(xb) & math.isfinite(yb) & math.isfinite(zb)
             g[rank + lane] = verdict if finite else 3.0
     _copy_row(g, _row(b0, RANK), _row(_block(n - 1), RANK))
 
@@ -394,6 +404,9 @@ def run_group(g, n, G, dt, n_steps, escape_r2, check_collisions, watch):
     half = 0.5 * dt
     eps2 = 0.0
     b0 = _block(0)
+    # LANES as a number LLVM cannot see, for the short lane loops: with a known count of 16 LLVM unrolls them
+    # first, and their unrolled code (isfinite, selects, sums) was not vectorised; counted at run time they are
+    width = _U(g.size // (n * BLOCK_ROWS))
     live_lanes = 0
     for lane in range(LANES):
         live_lanes += g[_row(b0, LIVE) + _U(lane)] > 0.0
@@ -407,15 +420,15 @@ def run_group(g, n, G, dt, n_steps, escape_r2, check_collisions, watch):
                 live_lanes -= _stop_failed_drifts(g, n, b, done + 1)
         jx, jy, jz, liver = _row(b0, JP), _row(b0, JP + 1), _row(b0, JP + 2), _row(b0, LIVE)
         vx, vy, vz = _row(b0, JV), _row(b0, JV + 1), _row(b0, JV + 2)
-        for lane in range(_U(LANES)):  # the centre of mass drifts
-            live = g[liver + lane] > 0.0
-            g[jx + lane] = g[jx + lane] + h * g[vx + lane] if live else g[jx + lane]
-            g[jy + lane] = g[jy + lane] + h * g[vy + lane] if live else g[jy + lane]
-            g[jz + lane] = g[jz + lane] + h * g[vz + lane] if live else g[jz + lane]
-        kick_lanes(g, n, G, eps2, dt)
+        for lane in range(width):  # the centre of mass drifts
+            live, x, y, z = g[liver + lane] > 0.0, g[jx + lane], g[jy + lane], g[jz + lane]
+            g[jx + lane] = x + h * g[vx + lane] if live else x
+            g[jy + lane] = y + h * g[vy + lane] if live else y
+            g[jz + lane] = z + h * g[vz + lane] if live else z
+        kick_lanes(g, n, G, eps2, dt, width)
         done += 1
         _track_orbit_lanes(g, _block(watch))
-        _stop_test_lanes(g, n, escape_r2, check_collisions)
+        _stop_test_lanes(g, n, escape_r2, check_collisions, width)
         for lane in range(LANES):
             verdict = g[_row(b0, RANK) + _U(lane)]
             if verdict > 0.0 and g[_row(b0, LIVE) + _U(lane)] > 0.0:
