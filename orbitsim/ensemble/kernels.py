@@ -171,7 +171,6 @@ def run_system(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_col
     The step is :func:`orbitsim.integrators.wisdom_holman._advance_to`'s for Jacobi coordinates
     without correctors or forces: K(dt/2 at the start, then dt), centre-of-mass drift, I(dt).
     """
-    n = pos.shape[1]
     e0 = _energy(pos, vel, m, G, rows)
     inertial_to_jacobi(pos, weights, jpos)
     inertial_to_jacobi(vel, weights, jvel)
@@ -197,6 +196,18 @@ def run_system(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_col
         status = _stop_reason(ipos, radii, escape_r2, check_collisions)
         if status != COMPLETE:
             break
+    return finish_system(pos, vel, m, G, dt, t_start, done, status, max_e, delta_a, e0, jpos, jvel, ipos, iacc,
+                         weights, mu, ks, kstage, rows, out)
+
+
+@jit
+def finish_system(pos, vel, m, G, dt, t_start, done, status, max_e, delta_a, e0, jpos, jvel, ipos, iacc, weights, mu,
+                  ks, kstage, rows, out):
+    """The end of :func:`run_system` (and of a system in SIMD lanes, :mod:`orbitsim.ensemble.system_lanes`): the
+    row of ``out`` of a system stopped with ``status`` after ``done`` steps, its Jacobi mapping state ``jpos``,
+    ``jvel`` synchronised into ``pos``, ``vel`` (left as they were for a DIVERGED system), its energy error
+    against ``e0``. ``ipos``, ``iacc``, ``ks``, ``kstage`` are scratch. Returns ``(status, done)``."""
+    n = pos.shape[1]
     out[SURVIVAL_TIME] = t_start + done * dt
     out[MAX_E] = max_e
     out[DELTA_A] = delta_a

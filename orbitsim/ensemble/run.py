@@ -2,7 +2,8 @@
 
 :func:`run_ensemble` checks and coerces its input (the kernels assume clean arrays), allocates every
 array a kernel writes once per call, and calls the scheme's kernel:
-:func:`orbitsim.ensemble.kernels.run_ensemble_wh` (or its variational twin) for ``wisdom_holman``, the
+:func:`orbitsim.ensemble.system_lanes.run_ensemble_wh_lanes` (its scalar twin
+:func:`orbitsim.ensemble.kernels.run_ensemble_wh`, or the variational kernels) for ``wisdom_holman``, the
 scheme's kernel of :mod:`orbitsim.ensemble.kick_drift` for ``verlet`` and the leapfrog orders.
 """
 
@@ -97,7 +98,7 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
                  n_steps: int, t_start: float = 0.0, escape_distance: float = np.inf,
                  radii: np.ndarray | None = None, watch: int = 1,
                  variation: tuple[np.ndarray, np.ndarray] | None = None,
-                 shared_massive: bool = True, integrator: str = "wisdom_holman") -> EnsembleResult:
+                 shared_massive: bool = True, integrator: str = "wisdom_holman", lanes: bool = True) -> EnsembleResult:
     """Run K systems of N bodies with the Wisdom-Holman map (Jacobi coordinates, no corrector), or with
     velocity Verlet or a leapfrog order and their variational equations (``integrator``).
 
@@ -132,6 +133,10 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
         ``verlet``, ``leapfrog``, ``leapfrog4``, ``leapfrog6`` or ``leapfrog8``. The kick-drift schemes
         (:mod:`orbitsim.ensemble.kick_drift`) always carry their variational equations: they need
         ``variation``, and at most :data:`orbitsim.physics.gravity.SMALL_N_MAX` bodies per system.
+    lanes : bool
+        Without ``variation`` (Wisdom-Holman): step :data:`orbitsim.ensemble.lanes.LANES` systems side by side in
+        SIMD lanes (:mod:`orbitsim.ensemble.system_lanes`: the same bits, a fraction of the time). False: one
+        system at a time, the scalar kernel (tests compare the two).
 
     Returns
     -------
@@ -183,9 +188,14 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
                                  np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch), weights, mu,
                                  scratch_t, np.zeros(0), status, steps, out)
         return EnsembleResult(status, steps, out, pos, vel)
-    run_ensemble_wh(pos, vel, m, float(G), float(dt), float(t_start), np.int64(n_steps), escape_r2, r,
-                    check_collisions, np.int64(watch), *scratch, weights, mu, ks, kstage, np.zeros(0), status,
-                    steps, out)
+    if lanes:
+        from orbitsim.ensemble.system_lanes import run_ensemble_wh_lanes  # noqa: PLC0415 - lazy: loads numba
+
+        kernel = run_ensemble_wh_lanes
+    else:
+        kernel = run_ensemble_wh
+    kernel(pos, vel, m, float(G), float(dt), float(t_start), np.int64(n_steps), escape_r2, r, check_collisions,
+           np.int64(watch), *scratch, weights, mu, ks, kstage, np.zeros(0), status, steps, out)
     return EnsembleResult(status, steps, out, pos, vel)
 
 

@@ -82,9 +82,11 @@ BISECTION_MAX_ITERATIONS = 300
 ITERATING, FAR, SINGULAR = 1, 3, 4
 
 
-@jit
+@jit_inline
 def _stumpff_series(z):
-    """``(c0, c1, c2, c3)`` by their series, for ``|z| <= STUMPFF_SERIES_MAX_Z``."""
+    """``(c0, c1, c2, c3)`` by their series, for ``|z| <= STUMPFF_SERIES_MAX_Z``. Inlined: called, it kept
+    the SIMD lanes' Newton loops (:mod:`orbitsim.ensemble.lanes`, :mod:`orbitsim.ensemble.system_lanes`) scalar,
+    a call in a loop being something LLVM cannot vectorise."""
     c2 = INV_FACTORIAL[18]
     c3 = INV_FACTORIAL[19]
     for k in range(7, -1, -1):
@@ -200,13 +202,19 @@ def orbit_terms(r0, v2, mu):
 @jit_inline
 def longer_than_half_period(beta, mu, dt):
     """Whether ``|dt|`` exceeds half the period of an ellipse (beta > 0), which :func:`setup` reduces."""
-    return beta > 0.0 and dt * dt * (beta * beta * beta) > (math.pi * mu) ** 2
+    # (pi mu)^2 as a product, the value ``** 2`` gives (1.0 times it): inlined where mu differs from lane to
+    # lane (orbitsim.ensemble.system_lanes), Numba's ``** 2`` became a loop that kept the lane loop scalar
+    pi_mu = math.pi * mu
+    return beta > 0.0 and dt * dt * (beta * beta * beta) > pi_mu * pi_mu
 
 
 @jit_inline
 def short_step(v2, mu, r0i, dt):
     """Whether Newton starts from the series: ``(dt / t_dyn)^2 <`` :data:`NEWTON_MAX_STEP2`."""
-    return dt * dt * max(v2, mu * r0i) * (r0i * r0i) < NEWTON_MAX_STEP2
+    # max(v2, mu / r0) written as the select Python's max makes (the later argument where it is greater): the
+    # builtin stayed a call, which kept a lane loop with per-lane mu scalar (orbitsim.ensemble.system_lanes)
+    mu_r0 = mu * r0i
+    return dt * dt * (mu_r0 if mu_r0 > v2 else v2) * (r0i * r0i) < NEWTON_MAX_STEP2
 
 
 @jit_inline
