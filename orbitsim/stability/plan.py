@@ -133,18 +133,13 @@ class _PixelReader:
         return m, np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
 
 
-def pixel_state(plan: MapPlan, pixel: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Masses (N,), positions and velocities (3, N) of one pixel, read as the scenario reads its bodies."""
-    return _PixelReader(plan).state(pixel)
-
-
 def _stack(states: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> PixelStates:
     return PixelStates(*(np.stack([s[part] for s in states]) for part in range(3)))
 
 
 def chunk_states(plan: MapPlan, index: int) -> PixelStates:
     """(P, N) masses and (P, 3, N) positions and velocities of chunk ``index``'s pixels: a slice of the
-    plan's ``states`` where it has them, else built here (the same bits: :func:`pixel_state` either way)."""
+    plan's ``states`` where it has them, else built here by a :class:`_PixelReader` (the same bits either way)."""
     first = index * plan.chunk
     last = min(first + plan.chunk, plan.n_pixels)
     if plan.states is None:

@@ -374,7 +374,7 @@ def test_the_plans_start_states_are_the_ones_each_chunk_would_build(scenario: Pa
 def test_a_pixel_reads_only_the_varied_bodies_with_the_bits_of_a_whole_read(scenario: Path, x_spec: str):
     # The pixels reread only the bodies from the first varied one on (the bodies before it read once); a
     # varied Jupiter is followed by Saturn and the planet, read again for every pixel: each pixel's state must
-    # be, bit for bit, what the scenario reader gives the whole edited document (pixel_state's old way).
+    # be, bit for bit, what the scenario reader gives the whole edited document (as pixels were read before).
     from orbitsim.scenario.bodies import read_bodies, shift_to_barycentre
     from orbitsim.scenario.fields import Fields
     from orbitsim.scenario.loader import TOP_KEYS
