@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import inspect
 
-import numba
 import numpy as np
 import pytest
+from threads_helpers import by_thread_count
 
 from orbitsim.chaos.megno import lyapunov, megno_value, random_initial_variation
 from orbitsim.chaos.run import chaos_run
@@ -121,15 +121,7 @@ def test_bits_do_not_depend_on_chunking_or_threads():
         parts = [part(i, min(i + size, 6)) for i in range(0, 6, size)]
         assert np.array_equal(whole.indicators, np.concatenate([p.indicators for p in parts]), equal_nan=True)
         assert np.array_equal(whole.pos, np.concatenate([p.pos for p in parts]))
-    before = numba.get_num_threads()
-    try:
-        by_count = {}
-        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
-            numba.set_num_threads(threads)
-            by_count[threads] = part(0, 6)
-    finally:
-        numba.set_num_threads(before)
-    first, last = by_count.values()
+    first, last = by_thread_count(lambda: part(0, 6)).values()
     assert np.array_equal(first.indicators, whole.indicators, equal_nan=True)
     assert np.array_equal(first.indicators, last.indicators, equal_nan=True)
     assert np.array_equal(first.vel, last.vel)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from threads_helpers import by_thread_count
 
 from orbitsim.chaos.megno import random_initial_variation
 from orbitsim.ensemble import run_ensemble
@@ -127,19 +128,10 @@ def test_lanes_outside_the_common_case_take_the_scalar_drift_and_keep_their_bits
 
 
 def test_shared_massive_bits_do_not_depend_on_the_thread_count():
-    import numba
-
     k = 40
     masses, pos, vel = _test_planets(k, seed=4)
     kwargs = {"G": 1.0, "dt": DT, "n_steps": 400, "watch": 3, "variation": _variation(k), "escape_distance": 15.0}
-    before = numba.get_num_threads()
-    runs = {}
-    try:
-        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
-            numba.set_num_threads(threads)
-            runs[threads] = run_ensemble(masses, pos, vel, **kwargs)
-    finally:
-        numba.set_num_threads(before)
+    runs = by_thread_count(lambda: run_ensemble(masses, pos, vel, **kwargs))
     first, *others = runs.values()
     for other in others:
         _assert_same_bits(first, other)

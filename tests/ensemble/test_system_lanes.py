@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import pytest
+from threads_helpers import by_thread_count
 
 from orbitsim.ensemble import run_ensemble
 from orbitsim.ensemble.lanes import LANES
@@ -105,13 +105,6 @@ def test_lane_bits_do_not_depend_on_chunking_or_threads():
     parts = [run_ensemble(masses[i:j], pos[i:j], vel[i:j], **kwargs) for i, j in ((0, 3), (3, 20), (20, 40))]
     for name in ("status", "steps", "indicators", "pos", "vel"):
         assert getattr(whole, name).tobytes() == np.concatenate([getattr(p, name) for p in parts]).tobytes()
-    before = numba.get_num_threads()
-    runs = {}
-    try:
-        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
-            numba.set_num_threads(threads)
-            runs[threads] = run_ensemble(masses, pos, vel, **kwargs)
-    finally:
-        numba.set_num_threads(before)
+    runs = by_thread_count(lambda: run_ensemble(masses, pos, vel, **kwargs))
     for other in runs.values():
         _assert_same_bits(whole, other)
