@@ -12,7 +12,7 @@ import signal
 import sys
 from pathlib import Path
 
-# The shared helpers here (naive.py, forces_helpers.py, threads_helpers.py, browser.py) are imported by
+# The shared helpers here (naive.py, forces_helpers.py, ensemble_helpers.py, browser.py) are imported by
 # name from every folder, and some test modules import another's fixtures and constants by module name
 # (``from test_checkpoint_kill import assert_same_datasets``), as they did when the suite was one
 # folder. Put this folder and each test folder on the path, so such an import does not depend on

@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 import pytest
-from threads_helpers import by_thread_count
+from ensemble_helpers import by_thread_count
 
 from orbitsim.ensemble import run_ensemble
 from orbitsim.ensemble.status import (

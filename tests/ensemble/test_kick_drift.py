@@ -15,7 +15,7 @@ import inspect
 
 import numpy as np
 import pytest
-from threads_helpers import by_thread_count
+from ensemble_helpers import by_thread_count
 
 from orbitsim.chaos.megno import lyapunov, megno_value, random_initial_variation
 from orbitsim.chaos.run import chaos_run

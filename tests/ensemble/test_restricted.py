@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from threads_helpers import by_thread_count
+from ensemble_helpers import assert_same_bits, by_thread_count
 
 from orbitsim.chaos.megno import random_initial_variation
 from orbitsim.ensemble import run_ensemble
@@ -33,15 +33,6 @@ def _variation(k: int, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     return np.tile(dpos * scale, (k, 1, 1)), np.tile(dvel * scale, (k, 1, 1))
 
 
-def _assert_same_bits(a, b) -> None:
-    assert np.array_equal(a.status, b.status)
-    assert np.array_equal(a.steps, b.steps)
-    # byte views: nan == nan and -0.0 != 0.0, as bit identity wants
-    assert a.indicators.tobytes() == b.indicators.tobytes()
-    assert a.pos.tobytes() == b.pos.tobytes()
-    assert a.vel.tobytes() == b.vel.tobytes()
-
-
 @pytest.mark.parametrize("case", ["plain", "escapes_and_collisions", "rescaled"])
 def test_shared_massive_bodies_give_the_bits_of_the_whole_system_kernel(case):
     k = 24
@@ -57,7 +48,7 @@ def test_shared_massive_bodies_give_the_bits_of_the_whole_system_kernel(case):
     assert restricted_applies(masses, pos, vel, kwargs.get("radii", np.zeros((k, 4))), *kwargs["variation"], 3)
     shared = run_ensemble(masses, pos, vel, **kwargs)
     whole = run_ensemble(masses, pos, vel, shared_massive=False, **kwargs)
-    _assert_same_bits(shared, whole)
+    assert_same_bits(shared, whole)
     if case == "escapes_and_collisions":
         assert (shared.status == ESCAPED).any() and (shared.status == COLLIDED).any()
         assert (shared.status == COMPLETE).any()  # some pixels ran to the end beside the stopped ones
@@ -81,7 +72,7 @@ def test_a_massive_tangent_vector_past_the_limit_falls_back_to_the_whole_system_
     masses, pos, vel = _test_planets(k)
     variation = _variation(k, 2.0 ** 301)  # the shared part's |delta|^2 > 2^600 at once: the shortcut gives up
     kwargs = {"G": 1.0, "dt": DT, "n_steps": 50, "watch": 3, "variation": variation}
-    _assert_same_bits(run_ensemble(masses, pos, vel, **kwargs),
+    assert_same_bits(run_ensemble(masses, pos, vel, **kwargs),
                       run_ensemble(masses, pos, vel, shared_massive=False, **kwargs))
 
 
@@ -123,7 +114,7 @@ def test_lanes_outside_the_common_case_take_the_scalar_drift_and_keep_their_bits
     assert k % LANES != 0
     kwargs = {"G": 1.0, "dt": DT, "n_steps": 300, "watch": 3, "variation": _variation(k)}
     shared = run_ensemble(masses, pos, vel, **kwargs)
-    _assert_same_bits(shared, run_ensemble(masses, pos, vel, shared_massive=False, **kwargs))
+    assert_same_bits(shared, run_ensemble(masses, pos, vel, shared_massive=False, **kwargs))
     assert (shared.status[close] == COMPLETE).all()  # they ran the whole way on the scalar drift
 
 
@@ -134,4 +125,4 @@ def test_shared_massive_bits_do_not_depend_on_the_thread_count():
     runs = by_thread_count(lambda: run_ensemble(masses, pos, vel, **kwargs))
     first, *others = runs.values()
     for other in others:
-        _assert_same_bits(first, other)
+        assert_same_bits(first, other)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from threads_helpers import by_thread_count
+from ensemble_helpers import assert_same_bits, by_thread_count
 
 from orbitsim.ensemble import run_ensemble
 from orbitsim.ensemble.lanes import LANES
@@ -26,19 +26,10 @@ def _giants(k: int, n: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return masses, pos, vel
 
 
-def _assert_same_bits(a, b) -> None:
-    assert np.array_equal(a.status, b.status)
-    assert np.array_equal(a.steps, b.steps)
-    # byte views: nan == nan and -0.0 != 0.0, as bit identity wants
-    assert a.indicators.tobytes() == b.indicators.tobytes()
-    assert a.pos.tobytes() == b.pos.tobytes()
-    assert a.vel.tobytes() == b.vel.tobytes()
-
-
 def _both(masses, pos, vel, **kwargs):
     lanes = run_ensemble(masses, pos, vel, **kwargs)
     scalar = run_ensemble(masses, pos, vel, lanes=False, **kwargs)
-    _assert_same_bits(lanes, scalar)
+    assert_same_bits(lanes, scalar)
     return lanes
 
 
@@ -107,4 +98,4 @@ def test_lane_bits_do_not_depend_on_chunking_or_threads():
         assert getattr(whole, name).tobytes() == np.concatenate([getattr(p, name) for p in parts]).tobytes()
     runs = by_thread_count(lambda: run_ensemble(masses, pos, vel, **kwargs))
     for other in runs.values():
-        _assert_same_bits(whole, other)
+        assert_same_bits(whole, other)
