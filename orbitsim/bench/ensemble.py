@@ -9,8 +9,8 @@ Side by side on this machine (issue 29's throughput target):
   for its map's computation alone (every chunk run and stored: the part REBOUND's ``pool.map`` does).
 * **ensemble**: ns per system-step of K = 4096 four-body systems (Sun, Jupiter, Saturn, Uranus) in the
   ensemble kernel, beside one system stepped by orbitsim's single-system Wisdom-Holman
-  (``Simulation.chunks``) and by REBOUND's WHFast (``sim.steps``).
-* **side by side**: the same ns per system-step, every contender in turn in each of a few rounds
+  (``Simulation.chunks``) and by REBOUND's WHFast (``sim.steps``): the best rounds (:func:`best_step_ns`) of
+* **side by side**: every contender in turn in each of a few rounds
   (:func:`side_by_side_step_ns`): the ensemble on all of Numba's threads and on one, the single-system
   step, REBOUND's WHFast and REBOUND's WHFast512 (:func:`whfast512_step_ns`, ``N_systems`` 1 and 2: one
   system, or two side by side in one AVX-512 register) where the REBOUND in use can run it; where it
@@ -108,31 +108,6 @@ def _giants(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.
     masses, pos, vel = np.tile(m, (k, 1)), np.tile(x, (k, 1, 1)), np.tile(v, (k, 1, 1))
     pos[:, 0, 3] *= 1.0 + 1e-3 * np.arange(k) / k
     return m, x, v, masses, pos, vel
-
-
-def ensemble_step_ns(k: int, steps: int) -> dict[str, float]:
-    import rebound  # noqa: PLC0415 - lazy: as above
-
-    m, x, v, masses, pos, vel = _giants(k)
-    run_ensemble(masses[:2], pos[:2], vel[:2], G=1.0, dt=0.5, n_steps=2)  # compile / load
-    started = time.perf_counter()
-    run_ensemble(masses, pos, vel, G=1.0, dt=0.5, n_steps=steps)
-    ensemble = (time.perf_counter() - started) / (k * steps) * 1e9
-    single_steps = 200_000
-    sim = Simulation(m, x.T, v.T, "wisdom_holman", 0.5, 1.0, threads=1)
-    list(sim.chunks(EveryPlan(10, 10)))
-    started = time.perf_counter()
-    list(sim.chunks(np.array([10 + single_steps])))
-    single = (time.perf_counter() - started) / single_steps * 1e9
-    rsim = rebound.Simulation()
-    for i in range(4):
-        rsim.add(m=float(m[i]), x=x[0, i], y=x[1, i], z=x[2, i], vx=v[0, i], vy=v[1, i], vz=v[2, i])
-    rsim.integrator = "whfast"
-    rsim.dt = 0.5
-    started = time.perf_counter()
-    rsim.steps(single_steps)
-    reb = (time.perf_counter() - started) / single_steps * 1e9
-    return {"ensemble": ensemble, "single": single, "rebound": reb}
 
 
 #: Largest relative distance (the bodies' distance from WHFast's over the system's largest distance) allowed
@@ -270,6 +245,13 @@ def side_by_side_step_ns(k: int, steps: int, rounds: int = 3, single_steps: int 
     return out
 
 
+def best_step_ns(side: dict[str, Any]) -> dict[str, float]:
+    """The best round of :func:`side_by_side_step_ns`'s ensemble (all threads), single-system and WHFast
+    times: the ``ensemble_ns``, ``single_ns`` and ``rebound_ns`` of the bench group and of map_speed.py."""
+    return {"ensemble": min(side["ensemble_threads_ns"]), "single": min(side["single_ns"]),
+            "rebound": min(side["whfast_ns"])}
+
+
 #: The schemes whose variational ensembles :func:`variational_pixel_steps` times side by side.
 VARIATIONAL_SCHEMES = ("wisdom_holman", "leapfrog", "leapfrog4", "verlet")
 
@@ -277,7 +259,7 @@ VARIATIONAL_SCHEMES = ("wisdom_holman", "leapfrog", "leapfrog4", "verlet")
 def variational_pixel_steps(k: int, steps: int, rounds: int = 2) -> dict[str, float]:
     """Pixel-steps per second (system-steps with the variational equations and MEGNO) of K four-body
     systems for each of :data:`VARIATIONAL_SCHEMES`, run in turn ``rounds`` times in this process; the
-    best round of each. The systems are those of :func:`ensemble_step_ns`; every one has four massive
+    best round of each. The systems are those of :func:`_giants`; every one has four massive
     bodies, so the Wisdom-Holman ensemble runs its whole-system kernel, as the kick-drift ones do."""
     from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: beside its use
 
@@ -307,8 +289,8 @@ def run_ensemble_probe(group: Any) -> dict[str, Any]:
         # the large map alone: REBOUND's time for it is the small map's per pixel times its pixels
         large_s, _, large_kernel_s = (orbitsim_map(large, p["years"], out / "large", p["indicator"], warm=False)
                                       if large else (0.0, 0.0, 0.0))
-    ns = ensemble_step_ns(p["k"], p["steps"])
     side_by_side = side_by_side_step_ns(p["k"], p["steps"], rounds=2)
+    ns = best_step_ns(side_by_side)
     variational = variational_pixel_steps(p["k"], p["steps"])
     return {"map_n": p["map_n"], "years": p["years"], "indicator": p["indicator"], "rebound_map_s": rebound_s,
             "orbitsim_map_s": orbitsim_s, "orbitsim_compute_s": compute_s,
