@@ -57,6 +57,7 @@ from orbitsim.ensemble.lanes import (
 from orbitsim.ensemble.massive_record import (
     BLOCK_STEPS,
     KEPLER_FAILED,
+    R_STATUS,
     V_POS,
     V_VEL,
     massive_block,
@@ -129,6 +130,18 @@ def _write_out(g, lane, k, code, n_steps_done, megno_steps, mpos, mvel, rec, row
         out[k, ENERGY_ERROR] = abs((_energy(pos[k], vel[k], m[k], G, rows) - e0) / e0)
 
 
+@jit
+def _massive_slot(slot, mpos, mvel, mdpos, mdvel, m, force, dt, weights, mu, scratch, escape_r2, radii,
+                  check_collisions, n_steps, rec, block_pos, block_vel, recorded, ok):
+    """The massive bodies' next block (:func:`massive_block`, up to ``n_steps`` steps) into record slot ``slot``,
+    their state before it into ``block_pos[slot]``, ``block_vel[slot]``, its step count and verdict into
+    ``recorded[slot]``, ``ok[slot]``."""
+    block_pos[slot, :, :] = mpos
+    block_vel[slot, :, :] = mvel
+    recorded[slot], ok[slot] = massive_block(mpos, mvel, mdpos, mdvel, m, force, dt, weights, mu, scratch, escape_r2,
+                                             radii, check_collisions, n_steps, rec[slot])
+
+
 @jit_parallel_exact
 def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps, escape_r2, radii,
                                check_collisions, watch, weights, mu, rows, status, steps, out):
@@ -136,7 +149,9 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
     and whose other bodies (and their variations) are the same in every system (module docstring).
     Same arguments and results, less its scratch; ``watch`` must be the last body. Returns False, having
     written nothing meaningful, where the shortcut gave up (the caller then runs the whole-system kernel).
-    The pixels are stepped LANES at a time (:mod:`orbitsim.ensemble.lanes`), group after group."""
+    The pixels are stepped LANES at a time (:mod:`orbitsim.ensemble.lanes`), group after group, block after
+    block; the massive bodies' next block is stepped beside the pixels' current one, as one more task of the
+    same ``prange`` (two record slots), so no thread waits for it."""
     n_sys = pos.shape[0]
     n = pos.shape[2]
     q = n - 1
@@ -146,8 +161,6 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
     mvel = vel[0, :, :q].copy()
     mdpos = dpos[0, :, :q].copy()
     mdvel = dvel[0, :, :q].copy()
-    mprev_pos = mpos.copy()
-    mprev_vel = mvel.copy()
     mm = m[0, :q].copy()
     mweights = weights[0, :q].copy()
     mmu = mu[0, :q].copy()
@@ -155,7 +168,12 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
     mscratch = np.zeros((8, 3, q))
     mu_t = mu[0, q]
     radius = radii[0, q]
-    rec = np.zeros((BLOCK_STEPS, record_columns(q)))
+    # two record slots: the pixels read one block while the massive bodies are stepped into the other
+    rec = np.zeros((2, BLOCK_STEPS, record_columns(q)))
+    block_pos = np.zeros((2, 3, q))  # the massive bodies' state before each slot's block
+    block_vel = np.zeros((2, 3, q))
+    recorded = np.zeros(2, dtype=np.int64)
+    ok = np.ones(2, dtype=np.bool_)
     n_groups = (n_sys + LANES - 1) // LANES
     groups = np.zeros((n_groups, NROWS * LANES))
     whole = np.zeros((n_groups, LANES, 3, 3, n))  # a rescaled lane's whole tangent state, for MEGNO and rescaling
@@ -167,18 +185,28 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
         _start_group(groups[grp], np.int64(grp), pos, vel, dpos, dvel, m, G, weights, mu, watch, rows, jscratch[grp],
                      e0)
     done = np.int64(0)  # not the literal 0: pixel_block_lanes would compile once for Literal[int](0), once for int64
+    cur = np.int64(0)
+    if n_steps > 0:
+        _massive_slot(cur, mpos, mvel, mdpos, mdvel, mm, force, dt, mweights, mmu, mscratch, escape_r2, mradii,
+                      check_collisions, np.int64(min(BLOCK_STEPS, n_steps)), rec, block_pos, block_vel, recorded, ok)
     while done < n_steps:
-        for c in range(3):
-            for i in range(q):
-                mprev_pos[c, i] = mpos[c, i]
-                mprev_vel[c, i] = mvel[c, i]
-        recorded, ok = massive_block(mpos, mvel, mdpos, mdvel, mm, force, dt, mweights, mmu, mscratch, escape_r2,
-                                     mradii, check_collisions, min(BLOCK_STEPS, n_steps - done), rec)
-        if not ok:
+        if not ok[cur]:
             return False
-        for grp in prange(n_groups):
+        n_rec = recorded[cur]
+        # the next block is stepped beside this one's pixels (task 0 of the prange below), unless this block ends
+        # the run or the massive bodies stopped in it (every pixel then stops in it too)
+        ahead = np.int64(1) if done + n_rec < n_steps and rec[cur, n_rec - 1, R_STATUS] == COMPLETE else np.int64(0)
+        nxt = np.int64(1) - cur
+        n_next = np.int64(min(BLOCK_STEPS, n_steps - done - n_rec))
+        cur_rec = rec[cur]
+        for task in prange(n_groups + ahead):
+            if task < ahead:
+                _massive_slot(nxt, mpos, mvel, mdpos, mdvel, mm, force, dt, mweights, mmu, mscratch, escape_r2,
+                              mradii, check_collisions, n_next, rec, block_pos, block_vel, recorded, ok)
+                continue
+            grp = task - ahead
             g = groups[grp]
-            pixel_block_lanes(g, whole[grp], q, mm, G, eps2, dt, mu_t, rec, recorded, done, t_start, radius, mradii,
+            pixel_block_lanes(g, whole[grp], q, mm, G, eps2, dt, mu_t, cur_rec, n_rec, done, t_start, radius, mradii,
                               escape_r2, check_collisions)
             for lane in range(LANES):
                 if g[LIVE * LANES + lane] != 0.0:
@@ -188,21 +216,23 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
                 code = np.int64(g[STOP_CODE * LANES + lane])
                 n_done = np.int64(g[STOP_STEP * LANES + lane])
                 if code == KEPLER_FAILED:  # the state before the failed step, which MEGNO's sums never saw
-                    _write_out(g, lane, k, np.int64(DIVERGED), done + n_done, done + n_done - 1, mprev_pos, mprev_vel,
-                               rec, n_done - 2, t_start, dt, e0[k], m, G, rows, pos, vel, status, steps, out)
+                    _write_out(g, lane, k, np.int64(DIVERGED), done + n_done, done + n_done - 1, block_pos[cur],
+                               block_vel[cur], cur_rec, n_done - 2, t_start, dt, e0[k], m, G, rows, pos, vel, status,
+                               steps, out)
                 else:
-                    _write_out(g, lane, k, code, done + n_done, done + n_done, mpos, mvel, rec, n_done - 1, t_start, dt,
-                               e0[k], m, G, rows, pos, vel, status, steps, out)
-        done += recorded
-        if recorded == 0:
+                    _write_out(g, lane, k, code, done + n_done, done + n_done, block_pos[cur], block_vel[cur],
+                               cur_rec, n_done - 1, t_start, dt, e0[k], m, G, rows, pos, vel, status, steps, out)
+        done += n_rec
+        if ahead == 0:
             break
+        cur = nxt
     for grp in prange(n_groups):
         g = groups[grp]
         for lane in range(LANES):
             if g[LIVE * LANES + lane] == 1.0:
                 k = np.int64(grp * LANES + lane)
-                _write_out(g, lane, k, np.int64(COMPLETE), n_steps, n_steps, mpos, mvel, rec, np.int64(-1), t_start, dt,
-                           e0[k], m, G, rows, pos, vel, status, steps, out)
+                _write_out(g, lane, k, np.int64(COMPLETE), n_steps, n_steps, mpos, mvel, rec[cur], np.int64(-1),
+                           t_start, dt, e0[k], m, G, rows, pos, vel, status, steps, out)
     return True
 
 

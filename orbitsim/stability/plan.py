@@ -14,6 +14,7 @@ from __future__ import annotations
 import copy
 import functools
 import hashlib
+import itertools
 import json
 import math
 from typing import Any, NamedTuple
@@ -208,18 +209,75 @@ def fingerprint(plan: MapPlan) -> str:
     return hashlib.sha256(json.dumps(record, sort_keys=True, default=str).encode()).hexdigest()
 
 
+#: Pixels a process reads at least: below 2 x this a map's start states are read in one process (a pool of forked
+#: readers starts in ~50 ms, the time of ~1,000 pixels).
+PIXELS_PER_READER = 4000
+
+
+class _PixelsRead(NamedTuple):
+    """The start states of pixels ``first .. last - 1`` (:func:`_read_pixels`), or the first one the scenario
+    reader rejected."""
+
+    states: PixelStates | None
+    farthest: float  #: the largest start distance of a body from body 0 among them
+    bad: tuple[int, str, str] | None  #: (pixel, reason, key) of the first rejected pixel
+
+
+def _read_pixels(plan: MapPlan, first: int, last: int) -> _PixelsRead:
+    """Read pixels ``first .. last - 1`` (in any process: a pool's forked reader too), stopping at the first one
+    the scenario reader rejects."""
+    from orbitsim.scenario.errors import ScenarioError  # noqa: PLC0415 - lazy: loads numba
+
+    reader = _PixelReader(plan)
+    states = []
+    for pixel in range(first, last):
+        try:
+            states.append(reader.state(pixel))
+        except ScenarioError as err:
+            return _PixelsRead(None, 0.0, (pixel, err.reason, str(err.key)))
+    read = _stack(states)
+    x = read.positions
+    farthest = float(np.max(np.sqrt(np.sum((x - x[:, :, :1]) ** 2, axis=1)))) if len(states) else 0.0
+    return _PixelsRead(read, farthest, None)
+
+
+def _state_workers(n_pixels: int) -> int:
+    """Processes to read ``n_pixels`` start states in: this process's CPUs, at least
+    :data:`PIXELS_PER_READER` pixels each; 1 where processes cannot be forked."""
+    import multiprocessing  # noqa: PLC0415 - lazy: only large maps start processes
+    import os  # noqa: PLC0415 - lazy: as above
+
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    return max(1, min(len(os.sched_getaffinity(0)), n_pixels // PIXELS_PER_READER))
+
+
+def _read_in_parallel(plan: MapPlan, workers: int) -> list[_PixelsRead]:
+    """:func:`_read_pixels` over the whole map in ``workers`` forked processes, four ranges each (pixels differ
+    in cost: a hyperbola's anomaly is solved differently), in pixel order. The readers run the scenario
+    reader alone: no Numba kernel, so the parent's kernel threads, which a fork does not copy, are not missed."""
+    import multiprocessing  # noqa: PLC0415 - lazy: only large maps start processes
+
+    bounds = np.linspace(0, plan.n_pixels, 4 * workers + 1).astype(np.int64)
+    light = without_states(plan)
+    ranges = [(light, int(a), int(b)) for a, b in itertools.pairwise(bounds) if b > a]
+    with multiprocessing.get_context("fork").Pool(workers) as pool:
+        return pool.starmap(_read_pixels, ranges)
+
+
 def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float,
-              escape_distance: float | None, chunk: int, seed: int = 0, device: str = "cpu") -> MapPlan:
+              escape_distance: float | None, chunk: int, seed: int = 0, device: str = "cpu",
+              workers: int | None = None) -> MapPlan:
     """Check that the ensemble can run ``scenario`` over ``axes`` up to ``t_end``; raise :class:`MapSpecError`.
 
     Every pixel's start state is built here once, so a pixel the scenario reader rejects (``e = 1.2``
     with ``a > 0``) is reported before anything is written; the plan keeps them (``states``) for the
-    chunks (building them twice cost 3.7 s of a 200 x 200 map).
+    chunks (building them twice cost 3.7 s of a 200 x 200 map). A large map reads them in ``workers``
+    processes (default :func:`_state_workers`), the same bits as one process reads them.
     """
     from orbitsim.ensemble.status import SCHEMES  # noqa: PLC0415 - lazy: beside its use
     from orbitsim.integrators.registry import canonical_name  # noqa: PLC0415 - lazy: loads numba
     from orbitsim.physics.gravity import SMALL_N_MAX  # noqa: PLC0415 - lazy: as above
-    from orbitsim.scenario.errors import ScenarioError  # noqa: PLC0415 - lazy: as above
 
     name = canonical_name(scenario.integrator)
     if name not in SCHEMES:
@@ -258,18 +316,16 @@ def make_plan(scenario: Any, doc: dict[str, Any], axes: list[Axis], t_end: float
                    scenario.frame == "barycentric", int(chunk), int(seed), name, device)
     if len(plan.names) != len(doc["bodies"]):
         raise MapSpecError("a map needs every body in the scenario's bodies list (no ephemeris or generator)")
-    farthest = 0.0
-    states = []
-    reader = _PixelReader(plan)
-    for pixel in range(plan.n_pixels):
-        try:
-            state = reader.state(pixel)
-        except ScenarioError as err:
+    n_workers = _state_workers(plan.n_pixels) if workers is None else workers
+    reads = _read_in_parallel(plan, n_workers) if n_workers > 1 else [_read_pixels(plan, 0, plan.n_pixels)]
+    for read in reads:  # in pixel order: the bad pixel reported is the first, as a serial read meets it
+        if read.bad is not None:
+            pixel, reason, key = read.bad
             values = ", ".join(f"{a.body}.{a.key}={v:g}" for a, v in zip(axes, _pixel_values(plan, pixel),
                                                                          strict=True))
-            raise MapSpecError(f"pixel {values}: {err.reason} (key {err.key})") from None
-        x = state[1]
-        farthest = max(farthest, float(np.max(np.sqrt(np.sum((x - x[:, :1]) ** 2, axis=0)))))
-        states.append(state)
+            raise MapSpecError(f"pixel {values}: {reason} (key {key})")
+    states = PixelStates(*(np.concatenate([getattr(read.states, part) for read in reads])
+                           for part in PixelStates._fields))
+    farthest = max(read.farthest for read in reads)
     escape = ESCAPE_FACTOR * farthest if escape_distance is None else float(escape_distance)
-    return plan._replace(escape_distance=escape, states=_stack(states))
+    return plan._replace(escape_distance=escape, states=states)

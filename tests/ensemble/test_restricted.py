@@ -55,6 +55,21 @@ def test_shared_massive_bodies_give_the_bits_of_the_whole_system_kernel(case):
     assert np.isfinite(shared.indicators[shared.status == COMPLETE, MEGNO]).all()
 
 
+def test_massive_bodies_that_collide_mid_block_stop_every_pixel_at_their_step_with_the_whole_system_bits():
+    # radii of 2 au for Jupiter and Saturn: the giants meet at step 359, inside the first of two blocks, so the
+    # block stepped ahead beside the pixels must not be; every pixel not stopped before (some meet an inflated
+    # giant first) stops at that step, with the whole-system kernel's bits
+    k = 20
+    masses, pos, vel = _test_planets(k, seed=3)
+    radii = np.tile([0.005, 2.0, 2.0, 0.0], (k, 1))
+    kwargs = {"G": 1.0, "dt": DT, "n_steps": N_STEPS, "watch": 3, "radii": radii, "variation": _variation(k)}
+    assert restricted_applies(masses, pos, vel, radii, *kwargs["variation"], 3)
+    shared = run_ensemble(masses, pos, vel, **kwargs)
+    assert_same_bits(shared, run_ensemble(masses, pos, vel, shared_massive=False, **kwargs))
+    assert (shared.status == COLLIDED).all()
+    giants_meet = shared.steps.max()
+    assert giants_meet < BLOCK_STEPS and (shared.steps == giants_meet).sum() >= 2 and shared.steps.min() < giants_meet
+
 def test_shared_massive_bits_do_not_depend_on_chunking():
     k = 8
     masses, pos, vel = _test_planets(k, seed=2)

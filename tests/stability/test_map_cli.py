@@ -370,6 +370,39 @@ def test_the_plans_start_states_are_the_ones_each_chunk_would_build(scenario: Pa
             assert np.array_equal(kept, built)
 
 
+def test_start_states_read_by_forked_readers_are_the_bits_of_one_process(scenario: Path):
+    # A large map reads its start states in forked processes (make_plan's workers), four pixel ranges each:
+    # states and the escape distance (from the farthest start) must be what one process reads, bit for bit.
+    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.stability.axes import parse_axis
+    from orbitsim.stability.plan import make_plan
+
+    doc, _ = parse_yaml(scenario.read_text(encoding="utf-8"), str(scenario))
+    axes = [parse_axis("--x", "planet.a=7.0:8.0:5", doc), parse_axis("--y", "planet.e=0:0.3:4", doc)]
+    one, forked = (make_plan(load_scenario(str(scenario)), doc, axes, 40.0, None, 4, workers=w) for w in (1, 2))
+    assert one.states is not None and forked.states is not None and one.states.masses.shape == (20, 5)
+    assert one.escape_distance == forked.escape_distance and np.isfinite(one.escape_distance)
+    for a, b in zip(one.states, forked.states, strict=True):
+        assert a.tobytes() == b.tobytes()
+
+
+def test_a_bad_pixel_found_by_forked_readers_is_the_first_one_as_one_process_finds_it(scenario: Path):
+    # e = 1.16 and 1.4 are not orbits for a > 0: pixels 12-17 are bad, in three of the eight ranges the two
+    # readers take; the message names the first of them (a = 7, e = 1.16), the one a single reader meets.
+    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.stability.axes import MapSpecError, parse_axis
+    from orbitsim.stability.plan import make_plan
+
+    doc, _ = parse_yaml(scenario.read_text(encoding="utf-8"), str(scenario))
+    axes = [parse_axis("--x", "planet.a=7.0:8.0:3", doc), parse_axis("--y", "planet.e=0.2:1.4:6", doc)]
+    said = []
+    for workers in (1, 2):
+        with pytest.raises(MapSpecError) as info:
+            make_plan(load_scenario(str(scenario)), doc, axes, 40.0, None, 4, workers=workers)
+        said.append(str(info.value))
+    assert said[0] == said[1] and said[0].startswith("pixel planet.a=7, planet.e=1.16: ") and "\n" not in said[0]
+
+
 @pytest.mark.parametrize("x_spec", ["planet.a=7.0:8.0:3", "jupiter.a=5.0:5.4:3", "jupiter.m=0.0005:0.002:3"])
 def test_a_pixel_reads_only_the_varied_bodies_with_the_bits_of_a_whole_read(scenario: Path, x_spec: str):
     # The pixels reread only the bodies from the first varied one on (the bodies before it read once); a
