@@ -683,9 +683,10 @@ def _start_group(g, grp, pos, vel, dpos, dvel, m, G, weights, mu, radii, watch, 
 
 
 @jit
-def _finish_group(g, grp, done, pos, vel, m, G, dt, t_start, watch, rows, e0, status, steps, out):
-    """Each system of group ``grp``: its inertial state into ``pos[k]``, ``vel[k]`` and the end of
-    run_system_variational (the indicator row, the energy error)."""
+def _finish_group(g, grp, done, pos, vel, dpos, dvel, m, G, dt, t_start, watch, rows, e0, status, steps, out):
+    """Each system of group ``grp``: its inertial state and tangent vector into ``pos[k]``, ``vel[k]``,
+    ``dpos[k]``, ``dvel[k]`` (where run_system_variational leaves them) and the end of run_system_variational
+    (the indicator row, the energy error)."""
     n_sys, n = pos.shape[0], pos.shape[2]
     b0, wb = _block(0), _block(watch)
     for lane in range(LANES):
@@ -700,6 +701,8 @@ def _finish_group(g, grp, done, pos, vel, m, G, dt, t_start, watch, rows, e0, st
             for c in range(3):
                 pos[k, c, b] = g[_row(_block(b), P + c) + ulane]
                 vel[k, c, b] = g[_row(_block(b), V + c) + ulane]
+                dpos[k, c, b] = g[_row(_block(b), DP + c) + ulane]
+                dvel[k, c, b] = g[_row(_block(b), DV + c) + ulane]
         megno = MegnoState(g[_row(b0, M_YS) + ulane], g[_row(b0, M_YSS) + ulane], g[_row(b0, M_COV_YT) + ulane],
                            g[_row(b0, M_VAR_T) + ulane], g[_row(b0, M_MEAN_T) + ulane],
                            g[_row(b0, M_MEAN_Y) + ulane], t_start, n_done)
@@ -718,7 +721,8 @@ def run_ensemble_variational_lanes(pos, vel, dpos, dvel, m, G, eps2, dt, t_start
                                    check_collisions, watch, weights, mu, scratch, rows, status, steps, out):
     """:func:`orbitsim.ensemble.kernels.run_ensemble_variational` without forces beyond gravity (``G``,
     ``eps2`` in place of its force context), LANES systems per group in SIMD lanes (module docstring): the same
-    results bit for bit; the groups in parallel (the last one padded). ``scratch`` (K, >= 2, 3, N)."""
+    results bit for bit, ``dpos`` and ``dvel`` left with each system's last tangent vector as that kernel leaves
+    them; the groups in parallel (the last one padded). ``scratch`` (K, >= 2, 3, N)."""
     n_sys, n = pos.shape[0], pos.shape[2]
     n_groups = (n_sys + LANES - 1) // LANES
     groups = np.zeros((n_groups, n * BLOCK_ROWS * LANES))
@@ -730,5 +734,5 @@ def run_ensemble_variational_lanes(pos, vel, dpos, dvel, m, G, eps2, dt, t_start
         _start_group(g, np.int64(grp), pos, vel, dpos, dvel, m, G, weights, mu, radii, watch, rows, scratch, e0)
         done = run_tangent_group(g, np.int64(n), G, eps2, dt, t_start, n_steps, escape_r2, check_collisions, watch,
                                  whole[grp])
-        _finish_group(g, np.int64(grp), np.int64(done), pos, vel, m, G, dt, t_start, watch, rows, e0, status, steps,
-                      out)
+        _finish_group(g, np.int64(grp), np.int64(done), pos, vel, dpos, dvel, m, G, dt, t_start, watch, rows, e0,
+                      status, steps, out)
