@@ -92,26 +92,60 @@ def _block(b):
 
 
 @jit_inline
+def _jacobi_up(g, base, src, dst, carry, width):
+    """One body's step of inertial_to_jacobi on the three rows at ``src``: ``dst`` = src - the interior centre
+    of mass (the ``carry`` rows), which then moves by weight times that. Rows are constants at every call, so
+    LLVM sees the loop's rows a known distance apart and vectorises it."""
+    w = _row(base, WEIGHT)
+    sx, sy, sz = _row(base, src), _row(base, src + 1), _row(base, src + 2)
+    dx, dy, dz = _row(base, dst), _row(base, dst + 1), _row(base, dst + 2)
+    cx, cy, cz = _row(base, carry), _row(base, carry + 1), _row(base, carry + 2)
+    for lane in range(width):
+        weight = g[w + lane]
+        com_x, com_y, com_z = g[cx + lane], g[cy + lane], g[cz + lane]
+        rel_x, rel_y, rel_z = g[sx + lane] - com_x, g[sy + lane] - com_y, g[sz + lane] - com_z
+        g[dx + lane], g[dy + lane], g[dz + lane] = rel_x, rel_y, rel_z
+        g[cx + lane] = com_x + weight * rel_x
+        g[cy + lane] = com_y + weight * rel_y
+        g[cz + lane] = com_z + weight * rel_z
+
+
+@jit_inline
+def _jacobi_down(g, base, src, dst, carry, masked, width):
+    """One body's step of jacobi_to_inertial on the three rows at ``src``: the centre of mass (``carry``) moves
+    back by weight times the Jacobi vector, and ``dst`` = the vector plus it (where ``masked``, live lanes only)."""
+    w, liver = _row(base, WEIGHT), _row(base, LIVE)
+    sx, sy, sz = _row(base, src), _row(base, src + 1), _row(base, src + 2)
+    dx, dy, dz = _row(base, dst), _row(base, dst + 1), _row(base, dst + 2)
+    cx, cy, cz = _row(base, carry), _row(base, carry + 1), _row(base, carry + 2)
+    for lane in range(width):
+        weight, keep = g[w + lane], masked and not g[liver + lane] > 0.0
+        rel_x, rel_y, rel_z = g[sx + lane], g[sy + lane], g[sz + lane]
+        com_x = g[cx + lane] - weight * rel_x
+        com_y = g[cy + lane] - weight * rel_y
+        com_z = g[cz + lane] - weight * rel_z
+        g[cx + lane], g[cy + lane], g[cz + lane] = com_x, com_y, com_z
+        ox, oy, oz = g[dx + lane], g[dy + lane], g[dz + lane]
+        g[dx + lane] = ox if keep else rel_x + com_x
+        g[dy + lane] = oy if keep else rel_y + com_y
+        g[dz + lane] = oz if keep else rel_z + com_z
+
+
+@jit_inline
 def _to_jacobi_lanes(g, n, width):
-    """inertial_to_jacobi of P, V, DP, DV into JP, JV, DP, DJV for every lane: the centre of mass (12 rows)
+    """inertial_to_jacobi of P, V, DP, DV into JP, JV, DJP, DJV for every lane: the centre of mass (12 rows)
     carried from body 0 up the chain, left in block 0's Jacobi rows."""
     _copy_rows(g, _block(1), CARRY, _block(0), P, 12)
     for i in range(1, n):
         base = _block(i)
-        w = _row(base, WEIGHT)
-        for q in range(4):  # P -> JP, V -> JV, DP -> DJP, DV -> DJV, each x, y, z in one lane loop
-            sx, sy, sz = _row(base, P + 3 * q), _row(base, P + 3 * q + 1), _row(base, P + 3 * q + 2)
-            dx, dy, dz = _row(base, JP + 3 * q), _row(base, JP + 3 * q + 1), _row(base, JP + 3 * q + 2)
-            cx, cy, cz = _row(base, CARRY + 3 * q), _row(base, CARRY + 3 * q + 1), _row(base, CARRY + 3 * q + 2)
-            for lane in range(width):
-                weight = g[w + lane]
-                com_x, com_y, com_z = g[cx + lane], g[cy + lane], g[cz + lane]
-                rel_x, rel_y, rel_z = g[sx + lane] - com_x, g[sy + lane] - com_y, g[sz + lane] - com_z
-                g[dx + lane], g[dy + lane], g[dz + lane] = rel_x, rel_y, rel_z
-                g[cx + lane] = com_x + weight * rel_x
-                g[cy + lane] = com_y + weight * rel_y
-                g[cz + lane] = com_z + weight * rel_z
-        _copy_rows(g, _block(i + 1) if i + 1 < n else _block(0), CARRY if i + 1 < n else JP, base, CARRY, 12)
+        _jacobi_up(g, base, P, JP, CARRY, width)
+        _jacobi_up(g, base, V, JV, CARRY + 3, width)
+        _jacobi_up(g, base, DP, DJP, CARRY + 6, width)
+        _jacobi_up(g, base, DV, DJV, CARRY + 9, width)
+        if i + 1 < n:
+            _copy_rows(g, _block(i + 1), CARRY, base, CARRY, 12)
+        else:
+            _copy_rows(g, _block(0), JP, base, CARRY, 12)
 
 
 @jit_inline
@@ -121,22 +155,10 @@ def _to_inertial_lanes(g, n, width):
     _copy_rows(g, _block(n - 1), CARRY, _block(0), JP, 12)
     for i in range(n - 1, 0, -1):
         base = _block(i)
-        w, liver = _row(base, WEIGHT), _row(base, LIVE)
-        for q in range(4):
-            sx, sy, sz = _row(base, JP + 3 * q), _row(base, JP + 3 * q + 1), _row(base, JP + 3 * q + 2)
-            dx, dy, dz = _row(base, P + 3 * q), _row(base, P + 3 * q + 1), _row(base, P + 3 * q + 2)
-            cx, cy, cz = _row(base, CARRY + 3 * q), _row(base, CARRY + 3 * q + 1), _row(base, CARRY + 3 * q + 2)
-            for lane in range(width):
-                weight, live = g[w + lane], g[liver + lane] > 0.0
-                rel_x, rel_y, rel_z = g[sx + lane], g[sy + lane], g[sz + lane]
-                com_x = g[cx + lane] - weight * rel_x
-                com_y = g[cy + lane] - weight * rel_y
-                com_z = g[cz + lane] - weight * rel_z
-                g[cx + lane], g[cy + lane], g[cz + lane] = com_x, com_y, com_z
-                ox, oy, oz = g[dx + lane], g[dy + lane], g[dz + lane]
-                g[dx + lane] = rel_x + com_x if live else ox
-                g[dy + lane] = rel_y + com_y if live else oy
-                g[dz + lane] = rel_z + com_z if live else oz
+        _jacobi_down(g, base, JP, P, CARRY, True, width)
+        _jacobi_down(g, base, JV, V, CARRY + 3, True, width)
+        _jacobi_down(g, base, DJP, DP, CARRY + 6, True, width)
+        _jacobi_down(g, base, DJV, DV, CARRY + 9, True, width)
         _copy_rows(g, _block(i - 1), CARRY, base, CARRY, 12)
     b0 = _block(0)
     liver = _row(b0, LIVE)
@@ -263,11 +285,12 @@ def _stop_failed_drifts(g, n, b, step):
 
 
 @jit
-def _tangent_gravity_lanes(g, n, G, eps2, pos, dpos, first_i, width):
+def _tangent_gravity_lanes(g, n, G, eps2, first_i, width):
     """:func:`orbitsim.physics.tangent.tangent_accelerations` of every lane into the DACC rows, at the positions
-    ``pos`` and tangent positions ``dpos`` (row numbers), rows i from ``first_i`` (1: every pair; 2: without
-    (0, 1)). Pair (i, j < i) in j's block with i's numbers copied there; row i's sum carried from j to j + 1
-    and then set in i's block, where it is the scalar's sum from zero (nothing was taken from row i before)."""
+    IPOS and tangent positions DIPOS (fixed rows: a loop's rows a known distance apart vectorise), rows i from
+    ``first_i`` (1: every pair; 2: without (0, 1)). Pair (i, j < i) in j's block with i's numbers copied
+    there; row i's sum carried from j to j + 1 and then set in i's block, where it is the scalar's sum from
+    zero (nothing was taken from row i before)."""
     for b in range(n):
         for c in range(3):
             dacc = _row(_block(b), DACC + c)
@@ -277,8 +300,8 @@ def _tangent_gravity_lanes(g, n, G, eps2, pos, dpos, first_i, width):
         bi = _block(i)
         for j in range(i):
             bj = _block(j)
-            _copy_rows(g, bj, OTHER, bi, pos, 3)
-            _copy_rows(g, bj, OTHER + 3, bi, dpos, 3)
+            _copy_rows(g, bj, OTHER, bi, IPOS, 3)
+            _copy_rows(g, bj, OTHER + 3, bi, DIPOS, 3)
             _copy_row(g, _row(bj, OTHER_S), _row(bi, MASS))
             if j == 0:
                 for c in range(3):
@@ -287,8 +310,8 @@ def _tangent_gravity_lanes(g, n, G, eps2, pos, dpos, first_i, width):
                         g[carry + lane] = 0.0
             else:
                 _copy_rows(g, bj, CARRY, _block(j - 1), CARRY, 3)
-            xj, yj, zj = _row(bj, pos), _row(bj, pos + 1), _row(bj, pos + 2)
-            qx, qy, qz = _row(bj, dpos), _row(bj, dpos + 1), _row(bj, dpos + 2)
+            xj, yj, zj = _row(bj, IPOS), _row(bj, IPOS + 1), _row(bj, IPOS + 2)
+            qx, qy, qz = _row(bj, DIPOS), _row(bj, DIPOS + 1), _row(bj, DIPOS + 2)
             xi, yi, zi = _row(bj, OTHER), _row(bj, OTHER + 1), _row(bj, OTHER + 2)
             pxi, pyi, pzi = _row(bj, OTHER + 3), _row(bj, OTHER + 4), _row(bj, OTHER + 5)
             sx, sy, sz = _row(bj, CARRY), _row(bj, CARRY + 1), _row(bj, CARRY + 2)
@@ -319,20 +342,8 @@ def _kick_tangent_lanes(g, n, G, eps2, dt, width):
     _copy_rows(g, _block(n - 1), CARRY + 3, b0, DJP, 3)
     for i in range(n - 1, 0, -1):
         base = _block(i)
-        w = _row(base, WEIGHT)
-        for q in range(2):  # JP -> IPOS, DJP -> DIPOS
-            src, dst = (JP, IPOS) if q == 0 else (DJP, DIPOS)
-            jx, jy, jz = _row(base, src), _row(base, src + 1), _row(base, src + 2)
-            cx, cy, cz = _row(base, CARRY + 3 * q), _row(base, CARRY + 3 * q + 1), _row(base, CARRY + 3 * q + 2)
-            ix, iy, iz = _row(base, dst), _row(base, dst + 1), _row(base, dst + 2)
-            for lane in range(_U(LANES)):
-                weight = g[w + lane]
-                rel_x, rel_y, rel_z = g[jx + lane], g[jy + lane], g[jz + lane]
-                com_x = g[cx + lane] - weight * rel_x
-                com_y = g[cy + lane] - weight * rel_y
-                com_z = g[cz + lane] - weight * rel_z
-                g[cx + lane], g[cy + lane], g[cz + lane] = com_x, com_y, com_z
-                g[ix + lane], g[iy + lane], g[iz + lane] = rel_x + com_x, rel_y + com_y, rel_z + com_z
+        _jacobi_down(g, base, JP, IPOS, CARRY, False, _U(LANES))
+        _jacobi_down(g, base, DJP, DIPOS, CARRY + 3, False, _U(LANES))
         if i > 1:
             _copy_rows(g, _block(i - 1), CARRY, base, CARRY, 6)
         else:
@@ -392,25 +403,14 @@ def _kick_tangent_lanes(g, n, G, eps2, dt, width):
             g[accy + lane] += g[cy + lane]
             g[accz + lane] += g[cz + lane]
     # the tangent gravity without the (0, 1) pair, at the kick's inertial positions
-    _tangent_gravity_lanes(g, n, G, eps2, IPOS, DIPOS, 2, width)
+    _tangent_gravity_lanes(g, n, G, eps2, 2, width)
     # both to Jacobi (inertial_to_jacobi, in place): the interior centre of mass carried from body 1 up
     _copy_rows(g, _block(1), CARRY, b0, ACC, 3)
     _copy_rows(g, _block(1), CARRY + 3, b0, DACC, 3)
     for i in range(1, n):
         base = _block(i)
-        w = _row(base, WEIGHT)
-        for q in range(2):
-            row = ACC if q == 0 else DACC
-            accx, accy, accz = _row(base, row), _row(base, row + 1), _row(base, row + 2)
-            cx, cy, cz = _row(base, CARRY + 3 * q), _row(base, CARRY + 3 * q + 1), _row(base, CARRY + 3 * q + 2)
-            for lane in range(_U(LANES)):
-                weight = g[w + lane]
-                com_x, com_y, com_z = g[cx + lane], g[cy + lane], g[cz + lane]
-                rel_x, rel_y, rel_z = g[accx + lane] - com_x, g[accy + lane] - com_y, g[accz + lane] - com_z
-                g[accx + lane], g[accy + lane], g[accz + lane] = rel_x, rel_y, rel_z
-                g[cx + lane] = com_x + weight * rel_x
-                g[cy + lane] = com_y + weight * rel_y
-                g[cz + lane] = com_z + weight * rel_z
+        _jacobi_up(g, base, ACC, ACC, CARRY, _U(LANES))
+        _jacobi_up(g, base, DACC, DACC, CARRY + 3, _U(LANES))
         if i + 1 < n:
             _copy_rows(g, _block(i + 1), CARRY, base, CARRY, 6)
     # the kicks: body 1's Kepler term cancels the (0, 1) pair; bodies i >= 2 add G M_i r'_i / |r'_i|^3 and, to
@@ -464,7 +464,10 @@ def _megno_lanes(g, n, G, eps2, dt, t, t_start, n_before, width):
     """megno_after_step of the live lanes: the tangent gravity of every pair at the new state, deltad_delta's
     sums carried body by body, megno_update; marks in NEAR the lanes to test for a rescaling. Returns
     whether any lane is marked."""
-    _tangent_gravity_lanes(g, n, G, eps2, P, DP, 1, width)
+    for b in range(n):  # the new state into the rows the tangent gravity reads (scratch until the next kick)
+        _copy_rows(g, _block(b), IPOS, _block(b), P, 3)
+        _copy_rows(g, _block(b), DIPOS, _block(b), DP, 3)
+    _tangent_gravity_lanes(g, n, G, eps2, 1, width)
     b0 = _block(0)
     for r in range(3):
         carry = _row(b0, CARRY + r)
