@@ -58,7 +58,7 @@ def test_lanes_give_the_bits_of_the_scalar_kernel(k, n, watch):
 def test_systems_that_stop_at_different_steps_stop_alone_with_the_scalar_kernels_bits():
     """One group: systems that escape and collide, each at a step of its own, and diverge (a drift that fails at
     once; a body so massive that the first kick overflows, so the second half drift fails), beside systems that
-    run to the end, one of them with a tangent vector rescaled at every few steps."""
+    run to the end, one with a tangent vector rescaled."""
     k = LANES
     masses, pos, vel = giants_systems(k)
     radii = np.zeros((k, 4))
@@ -79,6 +79,16 @@ def test_systems_that_stop_at_different_steps_stop_alone_with_the_scalar_kernels
     assert (result.status == COMPLETE).sum() == k - 8
     assert (result.steps[result.status == COMPLETE] == 300).all()
     assert result.status[10] == COMPLETE and np.isfinite(result.indicators[10, MEGNO])
+
+
+def test_systems_that_diverge_at_steps_of_their_own():
+    """Without an escape distance a massive Uranus flings the others to non-finite states: with m = 1e200 in the
+    first step, with m = 1e140 in the second (its first leaves them finite and far); one padded group."""
+    masses, pos, vel = giants_systems(5)
+    masses[1, 3], masses[3, 3] = 1e200, 1e140
+    result = _both(masses, pos, vel, G=1.0, dt=DT, n_steps=N_STEPS, variation=_variation(5, 4))
+    assert result.status.tolist() == [COMPLETE, DIVERGED, COMPLETE, DIVERGED, COMPLETE]
+    assert result.steps.tolist() == [N_STEPS, 1, N_STEPS, 2, N_STEPS]
 
 
 def _kernels(masses, pos, vel, dpos, dvel, n_steps):
