@@ -1,5 +1,5 @@
-"""What the ensemble tests share: the loop over Numba thread counts, and the bit-for-bit comparison of two
-ensemble results."""
+"""What the ensemble tests share: the loop over Numba thread counts, the bit-for-bit comparison of two
+ensemble results, and K systems of the giant planets."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ from typing import Any, TypeVar
 
 import numba
 import numpy as np
+
+from orbitsim.scenario import load_scenario
 
 T = TypeVar("T")
 
@@ -35,3 +37,13 @@ def assert_same_bits(a: Any, b: Any) -> None:
     assert a.indicators.tobytes() == b.indicators.tobytes()
     assert a.pos.tobytes() == b.pos.tobytes()
     assert a.vel.tobytes() == b.vel.tobytes()
+
+
+def giants_systems(k: int, n: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """K copies of the first ``n`` giants-scenario bodies (Sun, Jupiter, Saturn, Uranus, Neptune), the last
+    body's x nudged differently in each: masses (K, N), positions and velocities (K, 3, N)."""
+    sc = load_scenario("giants")
+    m, x, v = sc.masses[:n], sc.positions[:n].T, sc.velocities[:n].T
+    masses, pos, vel = np.tile(m, (k, 1)), np.tile(x, (k, 1, 1)), np.tile(v, (k, 1, 1))
+    pos[:, 0, n - 1] *= 1.0 + 1e-3 * np.arange(k)
+    return masses, pos, vel

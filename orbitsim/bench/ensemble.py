@@ -17,7 +17,8 @@ Side by side on this machine (issue 29's throughput target):
   cannot, the reason takes the figure's place.
 * **variational**: pixel-steps per second of the same K systems with their variational equations (what a
   map runs), the Wisdom-Holman ensemble beside the kick-drift ones (leapfrog, leapfrog4, verlet;
-  :mod:`orbitsim.ensemble.kick_drift`), in one process, alternating rounds (the best of each kept).
+  :mod:`orbitsim.ensemble.kick_drift`), in one process, alternating rounds (the best of each kept); and ns per
+  system-step of the Wisdom-Holman one in SIMD lanes beside its scalar kernel (:func:`variational_lanes_step_ns`).
 
 ``orbitsim bench full --group ensemble`` runs it (:func:`run_ensemble_probe`); ``benchmarks/map_speed.py``
 runs it alone and draws REBOUND's MEGNO map beside orbitsim's map.
@@ -280,6 +281,38 @@ def variational_pixel_steps(k: int, steps: int, rounds: int = 2) -> dict[str, fl
     return best
 
 
+def variational_lanes_step_ns(k: int, steps: int, rounds: int = 2) -> dict[str, Any]:
+    """ns per system-step of the K systems of :func:`_giants` with their variational equations and MEGNO in the
+    whole-system Wisdom-Holman ensemble (what a map over a massive body's parameter runs): the 16-lane kernel
+    (:mod:`orbitsim.ensemble.system_tangent_lanes`) and the scalar one (``run_ensemble(lanes=False)``), on all
+    of Numba's threads and on one, every contender in turn in each of ``rounds`` rounds in this process
+    (lists, one value a round)."""
+    import numba  # noqa: PLC0415 - lazy: loads numba
+
+    from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: beside its use
+
+    _, _, _, masses, pos, vel = _giants(k)
+    dpos, dvel = random_initial_variation(4, 0)
+    variation = (np.tile(dpos, (k, 1, 1)), np.tile(dvel, (k, 1, 1)))
+    previous, threads = numba.get_num_threads(), int(numba.config.NUMBA_NUM_THREADS)
+    for lanes in (True, False):  # compile / load
+        run_ensemble(masses[:2], pos[:2], vel[:2], G=1.0, dt=0.5, n_steps=2, lanes=lanes,
+                     variation=(variation[0][:2], variation[1][:2]))
+    out: dict[str, Any] = {"k": k, "steps": steps, "threads": threads, "lanes_threads_ns": [],
+                           "scalar_threads_ns": [], "lanes_1_thread_ns": [], "scalar_1_thread_ns": []}
+    for _ in range(rounds):
+        for suffix, n_threads in (("threads_ns", threads), ("1_thread_ns", 1)):
+            for name, lanes in (("lanes", True), ("scalar", False)):
+                numba.set_num_threads(n_threads)
+                try:
+                    started = time.perf_counter()
+                    run_ensemble(masses, pos, vel, G=1.0, dt=0.5, n_steps=steps, lanes=lanes, variation=variation)
+                    out[f"{name}_{suffix}"].append((time.perf_counter() - started) / (k * steps) * 1e9)
+                finally:
+                    numba.set_num_threads(previous)
+    return out
+
+
 def run_ensemble_probe(group: Any) -> dict[str, Any]:
     """The ``ensemble`` group of a benchmark matrix: the map race and the per-system-step times."""
     p = group.params
@@ -294,10 +327,12 @@ def run_ensemble_probe(group: Any) -> dict[str, Any]:
     side_by_side = side_by_side_step_ns(p["k"], p["steps"], rounds=2)
     ns = best_step_ns(side_by_side)
     variational = variational_pixel_steps(p["k"], p["steps"])
+    variational_lanes = variational_lanes_step_ns(p["k"], p["steps"])
     return {"map_n": p["map_n"], "years": p["years"], "indicator": p["indicator"], "rebound_map_s": rebound_s,
             "orbitsim_map_s": orbitsim_s, "orbitsim_compute_s": compute_s,
             "orbitsim_kernel_s": kernel_s, "k": p["k"], "steps": p["steps"],
             "ensemble_ns": ns["ensemble"], "single_ns": ns["single"], "rebound_ns": ns["rebound"],
             "large_map_n": large, "large_map_s": large_s, "large_kernel_s": large_kernel_s,
             "large_rebound_estimate_s": rebound_s * (large / p["map_n"]) ** 2,
-            "variational_pixel_steps_per_s": variational, "step_ns_side_by_side": side_by_side}
+            "variational_pixel_steps_per_s": variational, "step_ns_side_by_side": side_by_side,
+            "variational_lanes_step_ns": variational_lanes}

@@ -176,6 +176,13 @@ def _probes(doc: dict[str, Any]) -> list[str]:
             if rates:
                 out.append(f"- pixel-steps/s with the variational equations and MEGNO, K = {p['k']} 4-body systems, "
                            "one run: " + ", ".join(f"{name} {rate:.3g}" for name, rate in rates.items()))
+            if "variational_lanes_step_ns" in p:
+                v = p["variational_lanes_step_ns"]
+                out.append(f"- ns per system-step with the variational equations and MEGNO (wisdom_holman, whole "
+                           f"systems), best of {len(v['lanes_1_thread_ns'])} rounds, K = {v['k']}: 16 lanes "
+                           f"{min(v['lanes_1_thread_ns']):.0f} on 1 thread, {min(v['lanes_threads_ns']):.0f} on "
+                           f"{v['threads']}; scalar kernel {min(v['scalar_1_thread_ns']):.0f} on 1 thread, "
+                           f"{min(v['scalar_threads_ns']):.0f} on {v['threads']}")
             out.append("")
         elif p["kind"] == "sampling":
             out.append(f"{p['integrator']}, N = {p['n']}, {p['steps']} steps: every {p['every']} steps "

@@ -32,6 +32,9 @@ Indicators (columns of :mod:`orbitsim.ensemble.status`), per system:
   (:mod:`orbitsim.integrators.wisdom_holman.tangent`, REBOUND's WHFast in safe mode) and read after every
   step as a single-system chaos run reads it (:mod:`orbitsim.chaos.step`). That step keeps the inertial
   state between steps, so its bodies differ from :func:`run_ensemble_wh`'s by round-off.
+
+:mod:`orbitsim.ensemble.system_lanes` and :mod:`orbitsim.ensemble.system_tangent_lanes` step 16 systems side
+by side in SIMD lanes with these kernels' bits; the kernels here are their reference (``lanes=False``).
 """
 
 from __future__ import annotations

@@ -3,8 +3,11 @@
 :func:`run_ensemble` checks and coerces its input (the kernels assume clean arrays), allocates every
 array a kernel writes once per call, and calls the scheme's kernel:
 :func:`orbitsim.ensemble.system_lanes.run_ensemble_wh_lanes` (its scalar twin
-:func:`orbitsim.ensemble.kernels.run_ensemble_wh`, or the variational kernels) for ``wisdom_holman``, the
-scheme's kernel of :mod:`orbitsim.ensemble.kick_drift` for ``verlet`` and the leapfrog orders.
+:func:`orbitsim.ensemble.kernels.run_ensemble_wh`) for ``wisdom_holman``, with variations
+:func:`orbitsim.ensemble.restricted.run_restricted_variational` where it applies, else
+:func:`orbitsim.ensemble.system_tangent_lanes.run_ensemble_variational_lanes` (its scalar twin
+:func:`orbitsim.ensemble.kernels.run_ensemble_variational`), and the scheme's kernel of
+:mod:`orbitsim.ensemble.kick_drift` for ``verlet`` and the leapfrog orders.
 """
 
 from __future__ import annotations
@@ -134,9 +137,12 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
         (:mod:`orbitsim.ensemble.kick_drift`) always carry their variational equations: they need
         ``variation``, and at most :data:`orbitsim.physics.gravity.SMALL_N_MAX` bodies per system.
     lanes : bool
-        Without ``variation`` (Wisdom-Holman): step :data:`orbitsim.ensemble.lanes.LANES` systems side by side in
-        SIMD lanes (:mod:`orbitsim.ensemble.system_lanes`: the same bits, a fraction of the time). False: one
-        system at a time, the scalar kernel (tests compare the two).
+        Wisdom-Holman: step :data:`orbitsim.ensemble.lanes.LANES` whole systems side by side in SIMD lanes, the
+        same bits in a fraction of the time: without ``variation``
+        (:mod:`orbitsim.ensemble.system_lanes`) and with it where the shared-massive path does not apply
+        (:mod:`orbitsim.ensemble.system_tangent_lanes`: the tangent map and MEGNO in the lanes). False: one
+        system at a time, the scalar kernels :func:`~orbitsim.ensemble.kernels.run_ensemble_wh` and
+        :func:`~orbitsim.ensemble.kernels.run_ensemble_variational` (the reference; tests compare the two).
 
     Returns
     -------
@@ -184,9 +190,18 @@ def run_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarr
                                               weights, mu, np.zeros(0), status, steps, out):
                     return EnsembleResult(status, steps, out, rpos, rvel)
         scratch_t = np.zeros((k, TANGENT_SCRATCH_ROWS, 3, n))
-        run_ensemble_variational(pos, vel, dpos, dvel, m, force, float(dt), float(t_start),
-                                 np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch), weights, mu,
-                                 scratch_t, np.zeros(0), status, steps, out)
+        if lanes:  # force is gravity alone (make_force above), all the lanes kernel does
+            from orbitsim.ensemble.system_tangent_lanes import (  # noqa: PLC0415 - lazy: loads numba
+                run_ensemble_variational_lanes,
+            )
+
+            run_ensemble_variational_lanes(pos, vel, dpos, dvel, m, force.G, force.eps2, float(dt), float(t_start),
+                                           np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch),
+                                           weights, mu, scratch_t, np.zeros(0), status, steps, out)
+        else:
+            run_ensemble_variational(pos, vel, dpos, dvel, m, force, float(dt), float(t_start),
+                                     np.int64(n_steps), escape_r2, r, check_collisions, np.int64(watch), weights, mu,
+                                     scratch_t, np.zeros(0), status, steps, out)
         return EnsembleResult(status, steps, out, pos, vel)
     if lanes:
         from orbitsim.ensemble.system_lanes import run_ensemble_wh_lanes  # noqa: PLC0415 - lazy: loads numba

@@ -275,3 +275,21 @@ def test_the_ensemble_probe_times_both_codes():
     rates = result["variational_pixel_steps_per_s"]
     assert set(rates) == {"wisdom_holman", "leapfrog", "leapfrog4", "verlet"}
     assert all(rate > 0.0 for rate in rates.values())
+    lanes = result["variational_lanes_step_ns"]
+    for key in ("lanes_threads_ns", "scalar_threads_ns", "lanes_1_thread_ns", "scalar_1_thread_ns"):
+        assert len(lanes[key]) == 2 and min(lanes[key]) > 0.0, key  # two rounds, every contender
+
+
+def test_the_ensemble_report_shows_the_variational_lanes_beside_the_scalar_kernel():
+    from orbitsim.bench.report import markdown
+
+    probe = {"group": "ensemble", "kind": "ensemble", "map_n": 2, "years": 1.0, "indicator": "megno",
+             "rebound_map_s": 1.0, "orbitsim_map_s": 1.0, "orbitsim_compute_s": 0.5, "orbitsim_kernel_s": 0.4,
+             "k": 4, "steps": 3, "ensemble_ns": 700.0, "single_ns": 700.0, "rebound_ns": 1200.0,
+             "variational_lanes_step_ns": {"k": 4, "steps": 3, "threads": 2, "lanes_threads_ns": [180.0, 170.0],
+                                           "scalar_threads_ns": [900.0, 950.0], "lanes_1_thread_ns": [340.0, 330.0],
+                                           "scalar_1_thread_ns": [1700.0, 1600.0]}}
+    text = markdown({"machine": {}, "matrix": {"name": "t", "quick": True}, "threads": 2, "probes": [probe]})
+    line = next(row for row in text.splitlines() if "with the variational equations and MEGNO (wisdom_holman" in row)
+    assert line.endswith("best of 2 rounds, K = 4: 16 lanes 330 on 1 thread, 170 on 2; scalar kernel 1600 on 1 "
+                         "thread, 900 on 2")

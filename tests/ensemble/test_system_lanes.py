@@ -4,26 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ensemble_helpers import assert_same_bits, by_thread_count
+from ensemble_helpers import assert_same_bits, by_thread_count, giants_systems
 
 from orbitsim.ensemble import run_ensemble
 from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.status import COLLIDED, COMPLETE, DIVERGED, ESCAPED
 from orbitsim.physics.kepler_solver import setup_short
-from orbitsim.scenario import load_scenario
 
 DT = 0.5
 N_STEPS = 300
-
-
-def _giants(k: int, n: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """K copies of the first ``n`` giants-scenario bodies (Sun, Jupiter, Saturn, Uranus, Neptune), the last
-    body's x nudged differently in each."""
-    sc = load_scenario("giants")
-    m, x, v = sc.masses[:n], sc.positions[:n].T, sc.velocities[:n].T
-    masses, pos, vel = np.tile(m, (k, 1)), np.tile(x, (k, 1, 1)), np.tile(v, (k, 1, 1))
-    pos[:, 0, n - 1] *= 1.0 + 1e-3 * np.arange(k)
-    return masses, pos, vel
 
 
 def _both(masses, pos, vel, **kwargs):
@@ -37,7 +26,7 @@ def _both(masses, pos, vel, **kwargs):
 def test_lanes_give_the_bits_of_the_scalar_kernel(k, n, watch):
     """Ordinary systems: 40 make two full groups and a padded one; two-body systems have no pair to kick;
     five bodies, another watched body, one group mostly padding."""
-    masses, pos, vel = _giants(k, n)
+    masses, pos, vel = giants_systems(k, n)
     masses[:, 1] *= 1.0 + 0.1 * np.arange(k) / k  # masses, weights and Kepler parameters differ per lane too
     result = _both(masses, pos, vel, G=1.0, dt=DT, n_steps=N_STEPS, watch=watch)
     assert (result.status == COMPLETE).all() and (result.steps == N_STEPS).all()
@@ -48,7 +37,7 @@ def test_systems_that_stop_at_different_steps_stop_alone_with_the_scalar_kernels
     once; a body so massive that the first kick overflows, so the second drift fails) beside systems that run to
     the end."""
     k = LANES
-    masses, pos, vel = _giants(k)
+    masses, pos, vel = giants_systems(k)
     radii = np.zeros((k, 4))
     for lane, factor in zip((1, 4, 9), (2.5, 3.0, 4.0), strict=True):  # Uranus leaves on hyperbolas of its own
         vel[lane, :, 3] *= factor
@@ -69,7 +58,7 @@ def test_a_lane_outside_the_vector_drift_takes_the_scalar_drift_and_keeps_its_bi
     period, which the scalar solve reduces by whole periods: those lanes are drifted by kepler_drift beside
     lanes that stay on the vector path."""
     k = 40
-    masses, pos, vel = _giants(k)
+    masses, pos, vel = giants_systems(k)
     close = [5, 17, 39]
     for i in close:
         pos[i, :, 3] = pos[i, :, 0] + np.array([0.05, 0.0, 0.0])
@@ -80,7 +69,7 @@ def test_a_lane_outside_the_vector_drift_takes_the_scalar_drift_and_keeps_its_bi
 
 
 def test_no_steps_and_one_step():
-    masses, pos, vel = _giants(3)
+    masses, pos, vel = giants_systems(3)
     for n_steps in (0, 1):
         result = _both(masses, pos, vel, G=1.0, dt=DT, n_steps=n_steps)
         assert (result.steps == n_steps).all()
@@ -88,7 +77,7 @@ def test_no_steps_and_one_step():
 
 def test_lane_bits_do_not_depend_on_chunking_or_threads():
     k = 40
-    masses, pos, vel = _giants(k)
+    masses, pos, vel = giants_systems(k)
     vel[3, :, 3] *= 3.0  # one escapes
     kwargs = {"G": 1.0, "dt": DT, "n_steps": N_STEPS, "escape_distance": 60.0}
     whole = run_ensemble(masses, pos, vel, **kwargs)
