@@ -30,7 +30,10 @@ synchronisation and energy error at the end are the scalar kernel's own code
 Why one module: the block layout (the row constants) and the loops that index it are one piece, the scalar
 step written lane-wise part for part (drift, kick, elements, stop test), and read best beside each other;
 split, every part would import the layout and none could be read alone. The drift and the kick are called
-from one place each, so that their long code is inlined, and compiled, once.
+from one place each, so that their long code is inlined, and compiled, once. The Kepler solve
+(:func:`kepler_solve_lanes`), the orbit tracking and the stop test take their rows as arguments: the
+variational ensemble (:mod:`orbitsim.ensemble.system_tangent_lanes`), whose blocks hold a tangent vector too,
+calls them with its own layout's rows.
 """
 
 from __future__ import annotations
@@ -83,6 +86,12 @@ def _block(b):
 
 
 @jit_inline
+def _block_of(block_rows, b):
+    """The element offset of body ``b``'s block in a layout of ``block_rows`` rows a block."""
+    return _U(b * (block_rows * LANES))
+
+
+@jit_inline
 def _copy_row(g, dst, src):
     """Copy the LANES numbers at ``src`` to ``dst``: every load before any store, so that LLVM's SLP vectoriser
     makes vector moves of them (it may not reorder a load past a store that could overlap it)."""
@@ -103,23 +112,29 @@ def _copy_rows(g, dst_base, dst_row, src_base, src_row, count):
 
 
 @jit_inline
-def drift_body_lanes(g, base, h):
-    """Kepler drift by ``h`` of the live lanes of the body whose block is at ``base`` (its JP, JV rows about
-    MU), each lane with the bits of :func:`orbitsim.physics.kepler.kepler_drift`. Returns the number of live
-    lanes whose drift failed (their LIVE in this block set to 0; the caller stops them)."""
-    jx, jy, jz = _row(base, JP), _row(base, JP + 1), _row(base, JP + 2)
-    vxr, vyr, vzr = _row(base, JV), _row(base, JV + 1), _row(base, JV + 2)
-    mur, liver = _row(base, MU), _row(base, LIVE)
-    r0r, etar, zetar, betar, xr, r0ir = (_row(base, K_R0), _row(base, K_ETA0), _row(base, K_ZETA0),
-                                         _row(base, K_BETA), _row(base, K_X), _row(base, K_R0I))
-    pendr, fastr, g1r, g2r, g3r, rr = (_row(base, K_PENDING), _row(base, K_FAST), _row(base, K_G1),
-                                       _row(base, K_G2), _row(base, K_G3), _row(base, K_R))
+def kepler_solve_lanes(g, base, h, jp, jv, mu_row, live_row, k0):
+    """The solve of a Kepler drift by ``h`` for every lane of the body whose block is at ``base`` (position and
+    velocity rows ``jp``, ``jv``, its G M and LIVE rows ``mu_row``, ``live_row``; every caller gives its layout's
+    constant rows): each lane Newton-iterates from the series start with the Stumpff series, stopping when its
+    residual settles. Leaves in the 12 rows from ``k0`` (the K_R0 .. K_R order) r0, eta0, zeta0, beta, X, 1/r0,
+    pending (1: not settled in NEWTON_FAST_ITERATIONS), fast (1: a short step of a live lane that stayed in the
+    series range, which the caller may finish; a lane about mu = 0, which the scalar drift moves in a straight
+    line, is not), G1, G2, G3 and r. Shared by :func:`drift_body_lanes` and the variational ensemble's drift."""
+    jx, jy, jz = _row(base, jp), _row(base, jp + 1), _row(base, jp + 2)
+    vxr, vyr, vzr = _row(base, jv), _row(base, jv + 1), _row(base, jv + 2)
+    mur, liver = _row(base, mu_row), _row(base, live_row)
+    r0r, etar, zetar, betar, xr, r0ir = (_row(base, k0), _row(base, k0 + 1), _row(base, k0 + 2),
+                                         _row(base, k0 + 3), _row(base, k0 + 4), _row(base, k0 + 5))
+    pendr, fastr, g1r, g2r, g3r, rr = (_row(base, k0 + 6), _row(base, k0 + 7), _row(base, k0 + 8),
+                                       _row(base, k0 + 9), _row(base, k0 + 10), _row(base, k0 + 11))
     for lane in range(_U(LANES)):
         x, y, z = g[jx + lane], g[jy + lane], g[jz + lane]
         vx, vy, vz = g[vxr + lane], g[vyr + lane], g[vzr + lane]
         r0 = math.sqrt(x * x + y * y + z * z)
         eta0 = x * vx + y * vy + z * vz
-        r0i, zeta0, beta, X, short = setup_short(r0, vx * vx + vy * vy + vz * vz, eta0, g[mur + lane], h)
+        mu = g[mur + lane]
+        r0i, zeta0, beta, X, short = setup_short(r0, vx * vx + vy * vy + vz * vz, eta0, mu, h)
+        short = short & (mu != 0.0)  # the scalar drift moves a body about mu = 0 in a straight line
         live = g[liver + lane] > 0.0  # loaded before the ``and``: a load inside it is a branch, and no vector
         g[r0r + lane] = r0
         g[etar + lane] = eta0
@@ -149,6 +164,21 @@ def drift_body_lanes(g, base, h):
             pending |= still
         if not pending:
             break
+
+
+@jit_inline
+def drift_body_lanes(g, base, h):
+    """Kepler drift by ``h`` of the live lanes of the body whose block is at ``base`` (its JP, JV rows about
+    MU), each lane with the bits of :func:`orbitsim.physics.kepler.kepler_drift`: the solve
+    (:func:`kepler_solve_lanes`), then the f and g functions, or the scalar drift for a lane the lanes did not
+    finish. Returns the number of live lanes whose drift failed (their LIVE in this block set to 0; the caller
+    stops them)."""
+    kepler_solve_lanes(g, base, h, JP, JV, MU, LIVE, K_R0)
+    jx, jy, jz = _row(base, JP), _row(base, JP + 1), _row(base, JP + 2)
+    vxr, vyr, vzr = _row(base, JV), _row(base, JV + 1), _row(base, JV + 2)
+    mur, liver = _row(base, MU), _row(base, LIVE)
+    r0ir, pendr, fastr = _row(base, K_R0I), _row(base, K_PENDING), _row(base, K_FAST)
+    g1r, g2r, g3r, rr = _row(base, K_G1), _row(base, K_G2), _row(base, K_G3), _row(base, K_R)
     for lane in range(_U(LANES)):
         x, y, z = g[jx + lane], g[jy + lane], g[jz + lane]
         vx, vy, vz = g[vxr + lane], g[vyr + lane], g[vzr + lane]
@@ -331,12 +361,14 @@ def kick_lanes(g, n, G, eps2, dt, width):
 
 
 @jit_inline
-def _track_orbit_lanes(g, base):
-    """track_orbit for the live lanes: the watched body's (block ``base``) Jacobi a and e after the kick."""
-    jx, jy, jz = _row(base, JP), _row(base, JP + 1), _row(base, JP + 2)
-    vx, vy, vz = _row(base, JV), _row(base, JV + 1), _row(base, JV + 2)
-    mur, liver, a0r, max_er, delta_ar = (_row(base, MU), _row(base, LIVE), _row(base, A0), _row(base, MAX_E),
-                                         _row(base, DELTA_A))
+def track_orbit_lanes(g, base, jp, jv, mu_row, live_row, a0_row):
+    """track_orbit for the live lanes: the watched body's (block ``base``) Jacobi a and e from its rows ``jp``,
+    ``jv`` about ``mu_row``, the largest e and |a - a0| / |a0| kept in the two rows after ``a0_row`` (every caller
+    gives its layout's constant rows; shared with the variational ensemble)."""
+    jx, jy, jz = _row(base, jp), _row(base, jp + 1), _row(base, jp + 2)
+    vx, vy, vz = _row(base, jv), _row(base, jv + 1), _row(base, jv + 2)
+    mur, liver, a0r, max_er, delta_ar = (_row(base, mu_row), _row(base, live_row), _row(base, a0_row),
+                                         _row(base, a0_row + 1), _row(base, a0_row + 2))
     for lane in range(_U(LANES)):
         a, e = elements_ae(g[jx + lane], g[jy + lane], g[jz + lane], g[vx + lane], g[vy + lane], g[vz + lane],
                            g[mur + lane])
@@ -348,25 +380,29 @@ def _track_orbit_lanes(g, base):
 
 
 @jit_inline
-def _stop_test_lanes(g, n, escape_r2, check_collisions, width):
-    """:func:`orbitsim.ensemble.kernels._stop_reason` of every lane's inertial positions (IPOS, from the kick)
-    as a rank carried from block 0 to block n - 1 (3 non-finite, 2 escaped, 1 collided, 0 none: the larger
-    wins, the scalar test's precedence); left in block 0's RANK row. ``width`` is LANES (see :func:`run_group`)."""
-    b0 = _block(0)
+def stop_test_lanes(g, n, escape_r2, check_collisions, width, block_rows, pos, radius, other, other_s,
+                    rank_row):
+    """:func:`orbitsim.ensemble.kernels._stop_reason` of every lane's inertial positions (rows ``pos``: IPOS,
+    from the kick, in this module's layout) as a rank carried from block 0 to block n - 1 (3 non-finite,
+    2 escaped, 1 collided, 0 none: the larger wins, the scalar test's precedence); left in block 0's
+    ``rank_row`` row (the row after it: a collision seen). Blocks of ``block_rows`` rows, a body's radius in row
+    ``radius``, 3 rows from ``other`` and the row ``other_s`` scratch: every caller gives its layout's
+    constants (shared with the variational ensemble). ``width`` is LANES (see :func:`run_group`)."""
+    b0 = _block_of(block_rows, 0)
     if check_collisions:  # pair (i, j) in j's block, with i's position and radius copied there
         for j in range(n):
-            hit = _row(_block(j), HIT)
+            hit = _row(_block_of(block_rows, j), rank_row + 1)
             for lane in range(width):
                 g[hit + lane] = 0.0
         for i in range(n):
-            bi = _block(i)
+            bi = _block_of(block_rows, i)
             for j in range(i + 1, n):
-                bj = _block(j)
-                _copy_rows(g, bj, OTHER, bi, IPOS, 3)
-                _copy_row(g, _row(bj, OTHER_S), _row(bi, RADIUS))
-                xj, yj, zj = _row(bj, IPOS), _row(bj, IPOS + 1), _row(bj, IPOS + 2)
-                xi, yi, zi = _row(bj, OTHER), _row(bj, OTHER + 1), _row(bj, OTHER + 2)
-                ri, rj, hit = _row(bj, OTHER_S), _row(bj, RADIUS), _row(bj, HIT)
+                bj = _block_of(block_rows, j)
+                _copy_rows(g, bj, other, bi, pos, 3)
+                _copy_row(g, _row(bj, other_s), _row(bi, radius))
+                xj, yj, zj = _row(bj, pos), _row(bj, pos + 1), _row(bj, pos + 2)
+                xi, yi, zi = _row(bj, other), _row(bj, other + 1), _row(bj, other + 2)
+                ri, rj, hit = _row(bj, other_s), _row(bj, radius), _row(bj, rank_row + 1)
                 for lane in range(width):
                     reach = g[ri + lane] + g[rj + lane]
                     dx = g[xj + lane] - g[xi + lane]
@@ -374,17 +410,17 @@ def _stop_test_lanes(g, n, escape_r2, check_collisions, width):
                     dz = g[zj + lane] - g[zi + lane]
                     met = (reach > 0.0) & (dx * dx + dy * dy + dz * dz < reach * reach)
                     g[hit + lane] = 1.0 if met else g[hit + lane]
-    x0, y0, z0, rank = _row(b0, IPOS), _row(b0, IPOS + 1), _row(b0, IPOS + 2), _row(b0, RANK)
+    x0, y0, z0, rank = _row(b0, pos), _row(b0, pos + 1), _row(b0, pos + 2), _row(b0, rank_row)
     for lane in range(width):
         x, y, z = g[x0 + lane], g[y0 + lane], g[z0 + lane]
         g[rank + lane] = 0.0 if (math.isfinite(x) & math.isfinite(y) & math.isfinite(z)) else 3.0
     for b in range(1, n):
-        base = _block(b)
-        _copy_rows(g, base, OTHER, b0, IPOS, 3)
-        _copy_row(g, _row(base, RANK), _row(_block(b - 1), RANK))
-        x, y, z = _row(base, IPOS), _row(base, IPOS + 1), _row(base, IPOS + 2)
-        xs, ys, zs = _row(base, OTHER), _row(base, OTHER + 1), _row(base, OTHER + 2)
-        rank, hit = _row(base, RANK), _row(base, HIT)
+        base = _block_of(block_rows, b)
+        _copy_rows(g, base, other, b0, pos, 3)
+        _copy_row(g, _row(base, rank_row), _row(_block_of(block_rows, b - 1), rank_row))
+        x, y, z = _row(base, pos), _row(base, pos + 1), _row(base, pos + 2)
+        xs, ys, zs = _row(base, other), _row(base, other + 1), _row(base, other + 2)
+        rank, hit = _row(base, rank_row), _row(base, rank_row + 1)
         for lane in range(width):
             xb, yb, zb = g[x + lane], g[y + lane], g[z + lane]
             dx, dy, dz = xb - g[xs + lane], yb - g[ys + lane], zb - g[zs + lane]
@@ -393,7 +429,7 @@ def _stop_test_lanes(g, n, escape_r2, check_collisions, width):
             verdict = 2.0 if ((dx * dx + dy * dy + dz * dz > escape_r2) & (verdict < 2.0)) else verdict
             finite = math.isfinite(xb) & math.isfinite(yb) & math.isfinite(zb)
             g[rank + lane] = verdict if finite else 3.0
-    _copy_row(g, _row(b0, RANK), _row(_block(n - 1), RANK))
+    _copy_row(g, _row(b0, rank_row), _row(_block_of(block_rows, n - 1), rank_row))
 
 
 @jit
@@ -427,8 +463,9 @@ def run_group(g, n, G, dt, n_steps, escape_r2, check_collisions, watch):
             g[jz + lane] = z + h * g[vz + lane] if live else z
         kick_lanes(g, n, G, eps2, dt, width)
         done += 1
-        _track_orbit_lanes(g, _block(watch))
-        _stop_test_lanes(g, n, escape_r2, check_collisions, width)
+        track_orbit_lanes(g, _block(watch), JP, JV, MU, LIVE, A0)
+        stop_test_lanes(g, n, escape_r2, check_collisions, width, BLOCK_ROWS, IPOS, RADIUS, OTHER, OTHER_S,
+                        RANK)
         for lane in range(LANES):
             verdict = g[_row(b0, RANK) + _U(lane)]
             if verdict > 0.0 and g[_row(b0, LIVE) + _U(lane)] > 0.0:

@@ -37,17 +37,15 @@ The kernel takes ``G`` and ``eps2``, not a force context: it has no forces beyon
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import prange
 
 from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
 from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, megno_update, rescale_power_of_two
-from orbitsim.ensemble.kernels import _energy, elements_ae, jacobi_elements_ae, record_chaos_indicators
+from orbitsim.ensemble.kernels import _energy, jacobi_elements_ae, record_chaos_indicators
 from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.status import COMPLETE, DIVERGED, ENERGY_ERROR
-from orbitsim.ensemble.system_lanes import _copy_row, _copy_rows, _rank_code, _row
+from orbitsim.ensemble.system_lanes import _copy_rows, _rank_code, _row, stop_test_lanes, track_orbit_lanes
 from orbitsim.ensemble.system_tangent_step import (
     A0,
     BLOCK_ROWS,
@@ -57,7 +55,6 @@ from orbitsim.ensemble.system_tangent_step import (
     DIPOS,
     DP,
     DV,
-    HIT,
     IPOS,
     JP,
     JV,
@@ -195,71 +192,6 @@ def _rescale_lane(g, n, lane, whole):
                 g[_row(block(b), DV + c) + ulane] = whole[1, c, b]
 
 
-@jit_inline
-def _track_orbit_lanes(g, base):
-    """track_orbit for the live lanes: the watched body's (block ``base``) Jacobi a and e after the step."""
-    jx, jy, jz = _row(base, JP), _row(base, JP + 1), _row(base, JP + 2)
-    vx, vy, vz = _row(base, JV), _row(base, JV + 1), _row(base, JV + 2)
-    mur, liver, a0r, max_er, delta_ar = (_row(base, MU), _row(base, LIVE), _row(base, A0), _row(base, MAX_E),
-                                         _row(base, DELTA_A))
-    for lane in range(_U(LANES)):
-        a, e = elements_ae(g[jx + lane], g[jy + lane], g[jz + lane], g[vx + lane], g[vy + lane], g[vz + lane],
-                           g[mur + lane])
-        spread = abs(a - g[a0r + lane]) / abs(g[a0r + lane])
-        live = g[liver + lane] > 0.0
-        max_e, delta_a = g[max_er + lane], g[delta_ar + lane]
-        g[max_er + lane] = e if (live and e > max_e) else max_e
-        g[delta_ar + lane] = spread if (live and spread > delta_a) else delta_a
-
-
-@jit_inline
-def _stop_test_lanes(g, n, escape_r2, check_collisions, width):
-    """_stop_reason of every lane's inertial positions (P) as a rank carried from block 0 to block n - 1 (the
-    scalar test's precedence, as :mod:`orbitsim.ensemble.system_lanes`); left in block 0's RANK row."""
-    b0 = block(0)
-    if check_collisions:  # pair (i, j) in j's block, with i's position and radius copied there
-        for j in range(n):
-            hit = _row(block(j), HIT)
-            for lane in range(width):
-                g[hit + lane] = 0.0
-        for i in range(n):
-            bi = block(i)
-            for j in range(i + 1, n):
-                bj = block(j)
-                _copy_rows(g, bj, OTHER, bi, P, 3)
-                _copy_row(g, _row(bj, OTHER_S), _row(bi, RADIUS))
-                xj, yj, zj = _row(bj, P), _row(bj, P + 1), _row(bj, P + 2)
-                xi, yi, zi = _row(bj, OTHER), _row(bj, OTHER + 1), _row(bj, OTHER + 2)
-                ri, rj, hit = _row(bj, OTHER_S), _row(bj, RADIUS), _row(bj, HIT)
-                for lane in range(width):
-                    reach = g[ri + lane] + g[rj + lane]
-                    dx = g[xj + lane] - g[xi + lane]
-                    dy = g[yj + lane] - g[yi + lane]
-                    dz = g[zj + lane] - g[zi + lane]
-                    met = (reach > 0.0) & (dx * dx + dy * dy + dz * dz < reach * reach)
-                    g[hit + lane] = 1.0 if met else g[hit + lane]
-    x0, y0, z0, rank = _row(b0, P), _row(b0, P + 1), _row(b0, P + 2), _row(b0, RANK)
-    for lane in range(width):
-        x, y, z = g[x0 + lane], g[y0 + lane], g[z0 + lane]
-        g[rank + lane] = 0.0 if (math.isfinite(x) & math.isfinite(y) & math.isfinite(z)) else 3.0
-    for b in range(1, n):
-        base = block(b)
-        _copy_rows(g, base, OTHER, b0, P, 3)
-        _copy_row(g, _row(base, RANK), _row(block(b - 1), RANK))
-        x, y, z = _row(base, P), _row(base, P + 1), _row(base, P + 2)
-        xs, ys, zs = _row(base, OTHER), _row(base, OTHER + 1), _row(base, OTHER + 2)
-        rank, hit = _row(base, RANK), _row(base, HIT)
-        for lane in range(width):
-            xb, yb, zb = g[x + lane], g[y + lane], g[z + lane]
-            dx, dy, dz = xb - g[xs + lane], yb - g[ys + lane], zb - g[zs + lane]
-            verdict, met = g[rank + lane], g[hit + lane] > 0.0
-            verdict = 1.0 if (check_collisions & met & (verdict < 1.0)) else verdict
-            verdict = 2.0 if ((dx * dx + dy * dy + dz * dz > escape_r2) & (verdict < 2.0)) else verdict
-            finite = math.isfinite(xb) & math.isfinite(yb) & math.isfinite(zb)
-            g[rank + lane] = verdict if finite else 3.0
-    _copy_row(g, _row(b0, RANK), _row(block(n - 1), RANK))
-
-
 @jit
 def run_tangent_group(g, n, G, eps2, dt, t_start, n_steps, escape_r2, check_collisions, watch, whole):
     """Step a group's live lanes and their tangent vectors ``n_steps`` times, each until it stops (LIVE 0,
@@ -295,8 +227,8 @@ def run_tangent_group(g, n, G, eps2, dt, t_start, n_steps, escape_r2, check_coll
             for lane in range(LANES):
                 if g[_row(b0, NEAR) + _U(lane)] > 0.0:
                     _rescale_lane(g, n, lane, whole)
-        _track_orbit_lanes(g, block(watch))
-        _stop_test_lanes(g, n, escape_r2, check_collisions, width)
+        track_orbit_lanes(g, block(watch), JP, JV, MU, LIVE, A0)
+        stop_test_lanes(g, n, escape_r2, check_collisions, width, BLOCK_ROWS, P, RADIUS, OTHER, OTHER_S, RANK)
         for lane in range(LANES):
             verdict = g[_row(b0, RANK) + _U(lane)]
             if verdict > 0.0 and g[_row(b0, LIVE) + _U(lane)] > 0.0:

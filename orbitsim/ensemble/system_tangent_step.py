@@ -17,16 +17,9 @@ import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.ensemble.lanes import LANES
-from orbitsim.ensemble.system_lanes import _copy_row, _copy_rows, _row
+from orbitsim.ensemble.system_lanes import _copy_row, _copy_rows, _row, kepler_solve_lanes
 from orbitsim.integrators.wisdom_holman.tangent import drift_derivative, kepler_drift_tangent, stiefel_g6_short
 from orbitsim.physics.kepler import KEPLER_OK, fg_apply, lagrange_coefficients
-from orbitsim.physics.kepler_solver import (
-    NEWTON_FAST_ITERATIONS,
-    STUMPFF_SERIES_MAX_Z,
-    newton_terms,
-    setup_short,
-    stiefel_short,
-)
 from orbitsim.physics.tangent import pair_tangent_acceleration
 
 _U = np.uint64
@@ -133,8 +126,11 @@ def to_inertial_lanes(g, n, width):
 @jit_inline
 def drift_tangent_lanes(g, base, h):
     """kepler_drift_tangent by ``h`` of the body whose block is at ``base`` (its JP, JV, DJP, DJV rows about MU)
-    for every lane, each live lane with the scalar drift's bits (module docstring). Returns the number of live
-    lanes whose drift failed (their LIVE in this block set to 0; the caller stops them)."""
+    for every lane, each live lane with the scalar drift's bits (module docstring): the solve
+    (:func:`orbitsim.ensemble.system_lanes.kepler_solve_lanes`), then the f and g functions and their derivative.
+    Returns the number of live lanes whose drift failed (their LIVE in this block set to 0; the caller stops
+    them)."""
+    kepler_solve_lanes(g, base, h, JP, JV, MU, LIVE, K_R0)
     jx, jy, jz = _row(base, JP), _row(base, JP + 1), _row(base, JP + 2)
     vxr, vyr, vzr = _row(base, JV), _row(base, JV + 1), _row(base, JV + 2)
     dxr, dyr, dzr = _row(base, DJP), _row(base, DJP + 1), _row(base, DJP + 2)
@@ -144,43 +140,6 @@ def drift_tangent_lanes(g, base, h):
                                          _row(base, K_BETA), _row(base, K_X), _row(base, K_R0I))
     pendr, fastr, g1r, g2r, g3r, rr = (_row(base, K_PENDING), _row(base, K_FAST), _row(base, K_G1),
                                        _row(base, K_G2), _row(base, K_G3), _row(base, K_R))
-    for lane in range(_U(LANES)):
-        x, y, z = g[jx + lane], g[jy + lane], g[jz + lane]
-        vx, vy, vz = g[vxr + lane], g[vyr + lane], g[vzr + lane]
-        r0 = math.sqrt(x * x + y * y + z * z)
-        eta0 = x * vx + y * vy + z * vz
-        mu = g[mur + lane]
-        r0i, zeta0, beta, X, short = setup_short(r0, vx * vx + vy * vy + vz * vz, eta0, mu, h)
-        short = short & (mu != 0.0)  # the scalar drift moves a body about mu = 0 in a straight line
-        live = g[liver + lane] > 0.0
-        g[r0r + lane] = r0
-        g[etar + lane] = eta0
-        g[zetar + lane] = zeta0
-        g[betar + lane] = beta
-        g[xr + lane] = X
-        g[r0ir + lane] = r0i
-        g[pendr + lane] = 1.0 if (short and live) else 0.0
-        g[fastr + lane] = 1.0 if short else 0.0
-    for _ in range(NEWTON_FAST_ITERATIONS):
-        pending = 0
-        for lane in range(_U(LANES)):
-            r0, eta0, zeta0 = g[r0r + lane], g[etar + lane], g[zetar + lane]
-            beta, X = g[betar + lane], g[xr + lane]
-            _, G1, G2, G3, zz = stiefel_short(beta, X)
-            dX, r, settled = newton_terms(r0, eta0, zeta0, h, X, G1, G2, G3)
-            p = g[pendr + lane] > 0.0
-            outside = abs(zz) > STUMPFF_SERIES_MAX_Z  # the scalar solve would have used _stumpff_large
-            g[g1r + lane] = G1 if p else g[g1r + lane]
-            g[g2r + lane] = G2 if p else g[g2r + lane]
-            g[g3r + lane] = G3 if p else g[g3r + lane]
-            g[rr + lane] = r if p else g[rr + lane]
-            g[xr + lane] = X + dX if (p and not settled) else X
-            g[fastr + lane] = 0.0 if (p and outside) else g[fastr + lane]
-            still = p and not settled and not outside
-            g[pendr + lane] = 1.0 if still else 0.0
-            pending |= still
-        if not pending:
-            break
     for lane in range(_U(LANES)):
         x, y, z = g[jx + lane], g[jy + lane], g[jz + lane]
         vx, vy, vz = g[vxr + lane], g[vyr + lane], g[vzr + lane]
