@@ -63,7 +63,7 @@ from orbitsim.integrators.base import (
 )
 from orbitsim.integrators.trace.collide import H_MERGED, K_HITS, K_LOST
 from orbitsim.integrators.trace.contacts import arm_collisions, post_contacts
-from orbitsim.integrators.trace.core import PERI_MODES, _trace_step, active_count, counts_of
+from orbitsim.integrators.trace.core import PERI_MODES, active_count, counts_of, trace_steps
 from orbitsim.integrators.trace.core import make_work as make_step_work
 from orbitsim.integrators.trace.layout import (
     STATUS_IAS15_FAILED,
@@ -211,25 +211,22 @@ def take_merges(work: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray]:
     return rows[rows[:, H_MERGED] != 0.0], work.radii.copy()
 
 
-@jit
+@jit_inline
 def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
-    """Steps from ``n_done`` to ``n_to`` on TRACE's summed clock; returns the steps reached."""
+    """Steps from ``n_done`` to ``n_to`` on TRACE's summed clock (:func:`.core.trace_steps`, one call);
+    returns the steps reached."""
     _set_clock(work, t0, n_done, dt)  # first call, or a run that continues elsewhere: the clock of step n_done
+    if n_done >= n_to:
+        return n_done
     clock = work.clock
     real, codes = work.real, work.codes
-    frames, acc, com, rows, bs_real, bs_int = work.frames, work.acc, work.com, work.rows, work.bs_real, work.bs_int
-    prev_x, interacts, enc, book, radii, hits, collide = (work.prev_x, work.interacts, work.enc, work.book, work.radii,
-                                                          work.hits, work.collide)
-    while n_done < n_to:
-        dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
-        _trace_step(pos, vel, m, force.G, dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
-                    force.eps2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
-                    collide)
-        clock[0] += dt
-        n_done += 1
-        clock[1] = n_done
-        if book[ST_STATUS] != STATUS_OK:
-            break
+    dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
+    t, taken = trace_steps(pos, vel, m, force.G, dt, clock[0], dt_last_done, n_to - n_done, real[0], real[1], codes[0],
+                           codes[1], force.eps2, work.frames, work.acc, work.com, work.rows, work.bs_real, work.bs_int,
+                           work.prev_x, work.interacts, work.enc, work.book, work.radii, work.hits, work.collide)
+    clock[0] = t
+    n_done += taken
+    clock[1] = n_done
     return n_done
 
 
