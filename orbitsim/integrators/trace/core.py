@@ -64,6 +64,7 @@ from orbitsim.integrators.trace.layout import (
     F_BACKUP_POS,
     F_KEPLER_POS,
     STATUS_BS_NAN,
+    STATUS_IAS15_FAILED,
     STATUS_OK,
     StepWork,
 )
@@ -120,10 +121,15 @@ def counts_of(work: tuple[np.ndarray, ...]) -> dict[str, int]:
 @jit
 def trace_steps(pos, vel, m, G, dt, t, dt_last_done, n_steps, r_crit_hill, peri_crit_eta, peri_mode, n_active,
                 softening2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
-                collide):
+                collide, with_ias15):
     """Up to ``n_steps`` steps (:func:`trace_step`) on the unpacked work arrays, from time t summed as
     ``t += dt``; the first step reads ``dt_last_done``, the others dt. Stops after a step that failed
     (``book[ST_STATUS]``). Returns the time reached and the steps taken.
+
+    ``with_ias15``: None when ``peri_mode`` is not FULL_IAS15, which leaves the FULL_IAS15 step (and
+    the IAS15 it compiles, a fifth of TRACE's first-run compilation) out of this compilation: Numba
+    prunes a branch on an argument that is None before it types the function. Anything else (True)
+    compiles every mode.
 
     The try and the redo (REBOUND's ``step_try``) are one loop here rather than a function: a
     call with these 13 arrays cost more than the operators of a step without encounters. For the
@@ -159,6 +165,8 @@ def trace_steps(pos, vel, m, G, dt, t, dt_last_done, n_steps, r_crit_hill, peri_
                 if peri_mode == FULL_BS:
                     full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real, bs_int, interacts,
                                  enc, book, radii, hits, collide)
+                elif with_ias15 is None:
+                    book[ST_STATUS] = STATUS_IAS15_FAILED  # never reached: the caller passes None for other modes only
                 else:
                     # A redo after this try passes on the try's last IAS15 step (REBOUND's dt_last_done).
                     dt_last_done = full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com,
@@ -206,7 +214,7 @@ def trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, 
     frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
     trace_steps(pos, vel, m, G, dt, t, dt_last_done, 1, r_crit_hill, peri_crit_eta, peri_mode, n_active,
                 softening * softening, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii,
-                hits, collide)
+                hits, collide, True)
 
 
 @jit
@@ -219,7 +227,7 @@ def trace_run(pos, vel, m, G, dt, t0, n_steps, r_crit_hill, peri_crit_eta, peri_
     frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
     t, _ = trace_steps(pos, vel, m, G, dt, t0, dt_last_done, n_steps, r_crit_hill, peri_crit_eta, peri_mode, n_active,
                        softening * softening, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book,
-                       radii, hits, collide)
+                       radii, hits, collide, True)
     return t
 
 
