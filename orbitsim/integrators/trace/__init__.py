@@ -63,13 +63,13 @@ from orbitsim.integrators.base import (
 )
 from orbitsim.integrators.trace.collide import H_MERGED, K_HITS, K_LOST
 from orbitsim.integrators.trace.contacts import arm_collisions, post_contacts
-from orbitsim.integrators.trace.core import PERI_MODES, _trace_step, active_count, counts_of
+from orbitsim.integrators.trace.core import PERI_MODES, active_count, counts_of, trace_steps
 from orbitsim.integrators.trace.core import make_work as make_step_work
 from orbitsim.integrators.trace.layout import (
     STATUS_IAS15_FAILED,
     STATUS_OK,
 )
-from orbitsim.integrators.trace.switch import PARTIAL_BS, ST_CURRENT_C, ST_STATUS
+from orbitsim.integrators.trace.switch import FULL_IAS15, PARTIAL_BS, ST_CURRENT_C, ST_STATUS
 
 __all__ = ["SETTINGS", "SPEC", "TRACE", "carry_over", "check_bodies", "counters", "failure_message", "handoff",
            "make_work", "run", "run_watched", "step", "take_merges", "validate_settings"]
@@ -211,25 +211,23 @@ def take_merges(work: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray]:
     return rows[rows[:, H_MERGED] != 0.0], work.radii.copy()
 
 
-@jit
-def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to):
-    """Steps from ``n_done`` to ``n_to`` on TRACE's summed clock; returns the steps reached."""
+@jit_inline
+def _advance(pos, vel, m, force, dt, work, t0, n_done, n_to, with_ias15):
+    """Steps from ``n_done`` to ``n_to`` on TRACE's summed clock (:func:`.core.trace_steps`, one call;
+    ``with_ias15`` None leaves the full_ias15 pericentre step out of it); returns the steps reached."""
     _set_clock(work, t0, n_done, dt)  # first call, or a run that continues elsewhere: the clock of step n_done
+    if n_done >= n_to:
+        return n_done
     clock = work.clock
     real, codes = work.real, work.codes
-    frames, acc, com, rows, bs_real, bs_int = work.frames, work.acc, work.com, work.rows, work.bs_real, work.bs_int
-    prev_x, interacts, enc, book, radii, hits, collide = (work.prev_x, work.interacts, work.enc, work.book, work.radii,
-                                                          work.hits, work.collide)
-    while n_done < n_to:
-        dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
-        _trace_step(pos, vel, m, force.G, dt, clock[0], dt_last_done, real[0], real[1], codes[0], codes[1],
-                    force.eps2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
-                    collide)
-        clock[0] += dt
-        n_done += 1
-        clock[1] = n_done
-        if book[ST_STATUS] != STATUS_OK:
-            break
+    dt_last_done = 0.0 if n_done == 0 else dt  # as in one REBOUND run from the scenario's start
+    t, taken = trace_steps(pos, vel, m, force.G, dt, clock[0], dt_last_done, n_to - n_done, real[0], real[1], codes[0],
+                           codes[1], force.eps2, work.frames, work.acc, work.com, work.rows, work.bs_real, work.bs_int,
+                           work.prev_x, work.interacts, work.enc, work.book, work.radii, work.hits, work.collide,
+                           with_ias15)
+    clock[0] = t
+    n_done += taken
+    clock[1] = n_done
     return n_done
 
 
@@ -245,24 +243,54 @@ def _set_clock(work, t0, n_done, dt):
 def step(pos, vel, acc, m, force, dt, work):
     """One step from the clock's time (t = 0 on a fresh ``work``), ``pos``/``vel`` in and out
     (``acc`` is not used)."""
+    _one_step(pos, vel, m, force, dt, work, True)
+
+
+@jit_inline
+def _one_step(pos, vel, m, force, dt, work, with_ias15):
     n = max(int(work.clock[1]), 0)  # an unset clock (-1) is started at t = 0 by _advance
-    _advance(pos, vel, m, force, dt, work, 0.0, n, n + 1)
+    _advance(pos, vel, m, force, dt, work, 0.0, n, n + 1, with_ias15)
 
 
 @jit_inline
 def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
     """Steps from ``n_done`` to ``n_to`` on TRACE's clock; False when a step failed (a
     Bulirsch-Stoer sub-step produced nan, or a full_ias15 step could not finish)."""
-    n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, n_to)
+    n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, n_to, True)
     return n_done, work.book[ST_STATUS] == STATUS_OK
 
 
-@jit
-def run(state, force, dt, work, t0, n_done, targets, record, out):
+@jit_inline
+def _advance_without_ias15(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """:func:`advance` for a run whose ``peri_mode`` is not full_ias15."""
+    n_done = _advance(pos, vel, m, force, dt, work, t0, n_done, n_to, None)
+    return n_done, work.book[ST_STATUS] == STATUS_OK
+
+
+def _with_ias15(work: TraceWork) -> bool:
+    """Whether a run needs the full_ias15 pericentre step compiled (its ``peri_mode``)."""
+    return int(work.codes[0]) == FULL_IAS15
+
+
+def run(state: tuple[np.ndarray, ...], force: Any, dt: float, work: TraceWork, t0: float, n_done: int,
+        targets: np.ndarray, record: np.ndarray, out: Any) -> Any:
     """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`, from the clock of step
-    ``n_done`` (set when the run continues elsewhere)."""
+    ``n_done`` (set when the run continues elsewhere). A run whose ``peri_mode`` is not full_ias15
+    runs a kernel compiled without that step (:func:`.core.trace_steps`): a first run compiles less."""
+    kernel = _run_any_mode if _with_ias15(work) else _run_without_ias15
+    return kernel(state, force, dt, work, t0, n_done, targets, record, out)
+
+
+@jit
+def _run_any_mode(state, force, dt, work, t0, n_done, targets, record, out):
     _set_clock(work, t0, n_done, dt)
     return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
+
+
+@jit
+def _run_without_ias15(state, force, dt, work, t0, n_done, targets, record, out):
+    _set_clock(work, t0, n_done, dt)
+    return sample_loop(_advance_without_ias15, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit_inline
@@ -291,23 +319,41 @@ def _handoff_now(work):
     return _handoff(work)
 
 
-@jit
-def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
+def run_watched(state: tuple[np.ndarray, ...], force: Any, dt: float, work: TraceWork, t0: float, n_done: int,
+                targets: np.ndarray, record: np.ndarray, out: Any, watch: Any) -> Any:
     """:func:`run` one :func:`step` at a time with the events watch after each (:mod:`orbitsim.events`).
 
     TRACE also searches its Bulirsch-Stoer sub-steps for contacts (:mod:`.collide`) when
     the scenario detects collisions. A step with such a contact that merges or halts returns
     to Python at once, without the end-of-step checks: Python takes the merged bodies out first
-    and runs those checks on what is left (:mod:`orbitsim.events.driver`).
+    and runs those checks on what is left (:mod:`orbitsim.events.driver`). Compiled without the
+    full_ias15 step where ``peri_mode`` is another, as :func:`run`.
     """
+    if _with_ias15(work):
+        return _run_watched_any_mode(state, force, dt, work, t0, n_done, targets, record, out, watch)
+    return _run_watched_without_ias15(state, force, dt, work, t0, n_done, targets, record, out, watch)
+
+
+@jit
+def _run_watched_any_mode(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    return _watched(state, force, dt, work, t0, n_done, targets, record, out, watch, True)
+
+
+@jit
+def _run_watched_without_ias15(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    return _watched(state, force, dt, work, t0, n_done, targets, record, out, watch, None)
+
+
+@jit_inline
+def _watched(state, force, dt, work, t0, n_done, targets, record, out, watch, with_ias15):
     _set_clock(work, t0, n_done, dt)
     arm_collisions(work.radii, work.collide, watch)
-    pos, vel, acc, m = state
+    pos, vel, _acc, m = state
     written = np.int64(0)  # not the literal 0: record_sample would compile twice (for Literal[int](0) and int64)
     for k in range(targets.shape[0]):
         while n_done < targets[k]:
             remember_start(watch, pos, vel)
-            step(pos, vel, acc, m, force, dt, work)
+            _one_step(pos, vel, m, force, dt, work, with_ias15)
             n_done += 1
             if work.book[ST_STATUS] != STATUS_OK:
                 return written, n_done, False, False

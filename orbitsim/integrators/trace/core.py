@@ -7,7 +7,7 @@ passages are handed to Bulirsch-Stoer. One step of size dt, from the inertial st
    and the centre of mass, which drifts separately.
 2. :func:`~.switch.pre_step_check`: flag pairs that will come within ``r_crit_hill`` Hill
    radii during the first half step, and bodies near pericentre.
-3. The step (REBOUND's ``step_try``, in :func:`_trace_step`):
+3. The step (REBOUND's ``step_try``, in :func:`trace_steps`):
 
    * no pericentre flag, or ``peri_mode = PARTIAL_BS``: kick(dt/2) jump(dt/2) Kepler(dt)
      jump(dt/2) kick(dt/2), where the kicks leave out the flagged pairs, and the bodies of the
@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit
 from orbitsim.integrators.trace.bs import BS_INT_LENGTH, BS_REAL_LENGTH, N_ROWS
 from orbitsim.integrators.trace.collide import COLLIDE_LENGTH, HIT_COLUMNS, K_DETECT
 from orbitsim.integrators.trace.forces import interaction_kick
@@ -64,6 +64,7 @@ from orbitsim.integrators.trace.layout import (
     F_BACKUP_POS,
     F_KEPLER_POS,
     STATUS_BS_NAN,
+    STATUS_IAS15_FAILED,
     STATUS_OK,
     StepWork,
 )
@@ -82,7 +83,7 @@ from orbitsim.integrators.trace.switch import (
 )
 
 __all__ = ["PERI_MODES", "STATUS_BS_NAN", "STATUS_OK", "active_count", "advance", "counts_of", "make_work",
-           "trace_run", "trace_step"]
+           "trace_run", "trace_step", "trace_steps"]
 
 #: ``peri_mode`` by name (REBOUND's modes 0, 1, 2).
 PERI_MODES = {"partial_bs": PARTIAL_BS, "full_bs": FULL_BS, "full_ias15": FULL_IAS15}
@@ -117,65 +118,87 @@ def counts_of(work: tuple[np.ndarray, ...]) -> dict[str, int]:
     return {name: int(book[C_STEPS + k]) for k, name in enumerate(COUNT_NAMES)}
 
 
-@jit_inline
-def _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active, softening2,
-                frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide):
-    """:func:`trace_step` on the unpacked work arrays.
+@jit
+def trace_steps(pos, vel, m, G, dt, t, dt_last_done, n_steps, r_crit_hill, peri_crit_eta, peri_mode, n_active,
+                softening2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
+                collide, with_ias15):
+    """Up to ``n_steps`` steps (:func:`trace_step`) on the unpacked work arrays, from time t summed as
+    ``t += dt``; the first step reads ``dt_last_done``, the others dt. Stops after a step that failed
+    (``book[ST_STATUS]``). Returns the time reached and the steps taken.
+
+    ``with_ias15``: None when ``peri_mode`` is not FULL_IAS15, which leaves the FULL_IAS15 step (and
+    the IAS15 it compiles, a fifth of TRACE's first-run compilation) out of this compilation: Numba
+    prunes a branch on an argument that is None before it types the function. Anything else (True)
+    compiles every mode.
 
     The try and the redo (REBOUND's ``step_try``) are one loop here rather than a function: a
     call with these 13 arrays cost more than the operators of a step without encounters. For the
-    same reason this step, and the operators and checks it calls, are inlined into the run loops.
+    same reason the operators and checks a step calls are inlined here, and the loop over steps is
+    this function's own: every run loop calls it once per stretch of steps. (Written as an inlined
+    step, the step's IR, some 4,700 variables after its own inlining, was deep-copied block by block
+    into each loop, and a first run spent 9 s of its CPU copying it.)
     """
-    inertial_to_dh(pos, vel, m, n_active, com)
-    save_state(pos, vel, frames, F_BACKUP_POS)
-    book[ST_FORCE_ACCEPT] = 0
-    hill6 = acc[0]  # scratch of the checks: free there, as the kick overwrites acc before it reads it
-    star_radius = radii[0] if collide[K_DETECT] != 0 else 0.0
-    pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book,
-                   hill6, star_radius)
-    for attempt in range(2):
-        if attempt == 1:
-            # Redo once, from the start, with the union of the flags if the end state added any;
-            # never after a collision (ST_FORCE_ACCEPT), which cannot be undone.
-            if book[ST_STATUS] != STATUS_OK or book[ST_FORCE_ACCEPT] or not post_step_check(
-                    pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book,
-                    hill6, star_radius):
-                break
-            book[C_REDONE] += 1
-            restore_state(pos, vel, frames, F_BACKUP_POS)
-        current_c = book[ST_CURRENT_C] != 0
-        if current_c and peri_mode != PARTIAL_BS:
-            book[C_FULL_STEPS] += 1
-            if peri_mode == FULL_BS:
-                full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real, bs_int, interacts,
+    taken = 0
+    while taken < n_steps:
+        if taken > 0:
+            dt_last_done = dt  # a full_ias15 step returns its own for a redo within the step
+        inertial_to_dh(pos, vel, m, n_active, com)
+        save_state(pos, vel, frames, F_BACKUP_POS)
+        book[ST_FORCE_ACCEPT] = 0
+        hill6 = acc[0]  # scratch of the checks: free there, as the kick overwrites acc before it reads it
+        star_radius = radii[0] if collide[K_DETECT] != 0 else 0.0
+        pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book,
+                       hill6, star_radius)
+        for attempt in range(2):
+            if attempt == 1:
+                # Redo once, from the start, with the union of the flags if the end state added any;
+                # never after a collision (ST_FORCE_ACCEPT), which cannot be undone.
+                if book[ST_STATUS] != STATUS_OK or book[ST_FORCE_ACCEPT] or not post_step_check(
+                        pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc, book,
+                        hill6, star_radius):
+                    break
+                book[C_REDONE] += 1
+                restore_state(pos, vel, frames, F_BACKUP_POS)
+            current_c = book[ST_CURRENT_C] != 0
+            if current_c and peri_mode != PARTIAL_BS:
+                book[C_FULL_STEPS] += 1
+                if peri_mode == FULL_BS:
+                    full_bs_step(pos, vel, m, G, softening2, n_active, dt, t, com, rows, bs_real, bs_int, interacts,
+                                 enc, book, radii, hits, collide)
+                elif with_ias15 is None:
+                    book[ST_STATUS] = STATUS_IAS15_FAILED  # never reached: the caller passes None for other modes only
+                else:
+                    # A redo after this try passes on the try's last IAS15 step (REBOUND's dt_last_done).
+                    dt_last_done = full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com,
+                                              book)
+                continue
+            half = dt / 2.0
+            interaction_kick(pos, vel, m, G, softening2, n_active, interacts, acc, half)
+            if not current_c:  # a PARTIAL_BS pericentre step moves the jump into the BS equations
+                jump(pos, vel, m, n_active, half)
+            # Kepler drift of every body about the star; the encounter set is then redone with BS
+            # from the state before the drift (saved only when there is one: nothing else reads it).
+            if book[ST_ENC_N] >= 2:
+                save_state(pos, vel, frames, F_KEPLER_POS)
+            mu = G * m[0]
+            for i in range(1, pos.shape[1]):
+                (pos[0, i], pos[1, i], pos[2, i], vel[0, i], vel[1, i], vel[2, i]) = kepler_drift(
+                    pos[0, i], pos[1, i], pos[2, i], vel[0, i], vel[1, i], vel[2, i], mu, dt, prev_x)
+            if book[ST_ENC_N] >= 2:
+                encounter_bs(pos, vel, m, G, softening2, n_active, dt, t, frames, rows, bs_real, bs_int, interacts,
                              enc, book, radii, hits, collide)
-            else:
-                # A redo after this try passes on the try's last IAS15 step (REBOUND's dt_last_done).
-                dt_last_done = full_ias15(pos, vel, acc, m, G, softening2, n_active, dt, t, dt_last_done, com,
-                                          book)
-            continue
-        half = dt / 2.0
-        interaction_kick(pos, vel, m, G, softening2, n_active, interacts, acc, half)
-        if not current_c:  # a PARTIAL_BS pericentre step moves the jump into the BS equations
-            jump(pos, vel, m, n_active, half)
-        # Kepler drift of every body about the star; the encounter set is then redone with BS
-        # from the state before the drift (saved only when there is one: nothing else reads it).
-        if book[ST_ENC_N] >= 2:
-            save_state(pos, vel, frames, F_KEPLER_POS)
-        mu = G * m[0]
-        for i in range(1, pos.shape[1]):
-            (pos[0, i], pos[1, i], pos[2, i], vel[0, i], vel[1, i], vel[2, i]) = kepler_drift(
-                pos[0, i], pos[1, i], pos[2, i], vel[0, i], vel[1, i], vel[2, i], mu, dt, prev_x)
-        if book[ST_ENC_N] >= 2:
-            encounter_bs(pos, vel, m, G, softening2, n_active, dt, t, frames, rows, bs_real, bs_int, interacts,
-                         enc, book, radii, hits, collide)
-        for c in range(3):
-            com[c] += dt * com[3 + c]
-        if not current_c:
-            jump(pos, vel, m, n_active, half)
-        interaction_kick(pos, vel, m, G, softening2, n_active, interacts, acc, half)
-    dh_to_inertial(pos, vel, m, n_active, com)
-    book[C_STEPS] += 1
+            for c in range(3):
+                com[c] += dt * com[3 + c]
+            if not current_c:
+                jump(pos, vel, m, n_active, half)
+            interaction_kick(pos, vel, m, G, softening2, n_active, interacts, acc, half)
+        dh_to_inertial(pos, vel, m, n_active, com)
+        book[C_STEPS] += 1
+        t += dt
+        taken += 1
+        if book[ST_STATUS] != STATUS_OK:
+            break
+    return t, taken
 
 
 @jit
@@ -189,9 +212,9 @@ def trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, 
     (``t += dt``, as REBOUND). ``work``: :func:`make_work`.
     """
     frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
-    _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active,
+    trace_steps(pos, vel, m, G, dt, t, dt_last_done, 1, r_crit_hill, peri_crit_eta, peri_mode, n_active,
                 softening * softening, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii,
-                hits, collide)
+                hits, collide, True)
 
 
 @jit
@@ -202,17 +225,9 @@ def trace_run(pos, vel, m, G, dt, t0, n_steps, r_crit_hill, peri_crit_eta, peri_
     Stops early if a BS step produced nan (``work.book[ST_STATUS]``).
     """
     frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits, collide = work
-    softening2 = softening * softening
-    t = t0
-    for k in range(n_steps):
-        if k > 0:
-            dt_last_done = dt
-        _trace_step(pos, vel, m, G, dt, t, dt_last_done, r_crit_hill, peri_crit_eta, peri_mode, n_active,
-                    softening2, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book, radii, hits,
-                    collide)
-        t += dt
-        if book[ST_STATUS] != STATUS_OK:
-            break
+    t, _ = trace_steps(pos, vel, m, G, dt, t0, dt_last_done, n_steps, r_crit_hill, peri_crit_eta, peri_mode, n_active,
+                       softening * softening, frames, acc, com, rows, bs_real, bs_int, prev_x, interacts, enc, book,
+                       radii, hits, collide, True)
     return t
 
 
