@@ -1,5 +1,5 @@
 """What the ensemble tests share: the loop over Numba thread counts, the bit-for-bit comparison of two
-ensemble results, and K systems of the giant planets."""
+ensemble results, and K systems of the giant planets (one group of them that stop at steps of their own)."""
 
 from __future__ import annotations
 
@@ -47,3 +47,18 @@ def giants_systems(k: int, n: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarr
     masses, pos, vel = np.tile(m, (k, 1)), np.tile(x, (k, 1, 1)), np.tile(v, (k, 1, 1))
     pos[:, 0, n - 1] *= 1.0 + 1e-3 * np.arange(k)
     return masses, pos, vel
+
+
+def stopping_group(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`giants_systems` (4 bodies, K >= 15) with lanes that stop alone: Uranus escapes on hyperbolas of
+    its own in systems 1, 4 and 9; Jupiter and Saturn, inflated, collide in 2, 7 and 12; 14 diverges in its
+    first drift and 5 in its first kick. Masses, positions, velocities and radii (K, 4)."""
+    masses, pos, vel = giants_systems(k)
+    radii = np.zeros((k, 4))
+    for lane, factor in zip((1, 4, 9), (2.5, 3.0, 4.0), strict=True):  # Uranus leaves on hyperbolas of its own
+        vel[lane, :, 3] *= factor
+    for lane, radius in zip((2, 7, 12), (2.08, 2.1, 2.14), strict=True):  # Jupiter and Saturn (4.36 apart) inflated
+        radii[lane, 1] = radii[lane, 2] = radius
+    vel[14, 0, 2] = 1e300  # Saturn's v^2 overflows: its drift fails at the first step
+    masses[5, 3] = 1e200  # Uranus pulls the others to non-finite velocities in the first kick
+    return masses, pos, vel, radii

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from ensemble_helpers import assert_same_bits, by_thread_count, giants_systems
+from ensemble_helpers import assert_same_bits, by_thread_count, giants_systems, stopping_group
 
 from orbitsim.ensemble import run_ensemble
 from orbitsim.ensemble.lanes import LANES
@@ -37,14 +37,7 @@ def test_systems_that_stop_at_different_steps_stop_alone_with_the_scalar_kernels
     once; a body so massive that the first kick overflows, so the second drift fails) beside systems that run to
     the end."""
     k = LANES
-    masses, pos, vel = giants_systems(k)
-    radii = np.zeros((k, 4))
-    for lane, factor in zip((1, 4, 9), (2.5, 3.0, 4.0), strict=True):  # Uranus leaves on hyperbolas of its own
-        vel[lane, :, 3] *= factor
-    for lane, radius in zip((2, 7, 12), (2.08, 2.1, 2.14), strict=True):  # Jupiter and Saturn (4.36 apart) inflated
-        radii[lane, 1] = radii[lane, 2] = radius
-    vel[14, 0, 2] = 1e300  # Saturn's v^2 overflows: its drift fails at the first step
-    masses[5, 3] = 1e200  # Uranus pulls the others to non-finite velocities in the first kick
+    masses, pos, vel, radii = stopping_group(k)
     result = _both(masses, pos, vel, G=1.0, dt=DT, n_steps=N_STEPS, escape_distance=60.0, radii=radii)
     steps = {code: set(result.steps[result.status == code].tolist()) for code in (ESCAPED, COLLIDED, DIVERGED)}
     assert len(steps[ESCAPED]) == 3 and len(steps[COLLIDED]) == 3 and steps[DIVERGED] == {1, 2}, steps

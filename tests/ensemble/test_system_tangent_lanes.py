@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from ensemble_helpers import assert_same_bits, by_thread_count, giants_systems
+from ensemble_helpers import assert_same_bits, by_thread_count, giants_systems, stopping_group
 
 import orbitsim.ensemble
 import orbitsim.ensemble.system_tangent_lanes as tangent_lanes
@@ -60,14 +60,7 @@ def test_systems_that_stop_at_different_steps_stop_alone_with_the_scalar_kernels
     once; a body so massive that the first kick overflows, so the second half drift fails), beside systems that
     run to the end, one with a tangent vector rescaled."""
     k = LANES
-    masses, pos, vel = giants_systems(k)
-    radii = np.zeros((k, 4))
-    for lane, factor in zip((1, 4, 9), (2.5, 3.0, 4.0), strict=True):  # Uranus leaves on hyperbolas of its own
-        vel[lane, :, 3] *= factor
-    for lane, radius in zip((2, 7, 12), (2.08, 2.1, 2.14), strict=True):  # Jupiter and Saturn (4.36 apart) inflated
-        radii[lane, 1] = radii[lane, 2] = radius
-    vel[14, 0, 2] = 1e300  # Saturn's v^2 overflows: its drift fails at the first step
-    masses[5, 3] = 1e200  # Uranus pulls the others to non-finite velocities in the first kick
+    masses, pos, vel, radii = stopping_group(k)
     dpos, dvel = _variation(k, 4)
     dpos[10] *= 2.0 ** 505  # |delta|^2 above 2^400 from the first step on: rescaled by 2^-200 twice
     dvel[10] *= 2.0 ** 505
