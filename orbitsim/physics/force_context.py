@@ -30,7 +30,7 @@ from orbitsim._jit import jit, stop_requested
 from orbitsim.physics.gravity import (
     SMALL_N_MAX,
     accelerations,
-    accelerations_serial,
+    accelerations_rows,
     all_pairs_accelerations,
     force_scratch,
 )
@@ -63,7 +63,7 @@ class AllPairs(ForceContext):
 
 class Rows(ForceContext):
     """One block of third-law rows on one thread (N < :data:`~orbitsim.physics.gravity.PARALLEL_MIN_N`):
-    :func:`~orbitsim.physics.gravity.accelerations_serial`."""
+    :func:`~orbitsim.physics.gravity.accelerations_rows`."""
 
     __slots__ = ()
 
@@ -103,7 +103,7 @@ def _newtonian_accelerations(force, pos, m, acc):
     if kind is Rows:
         def rows(force, pos, m, acc):
             if not stop_requested():  # as accelerations(): a stopped call costs O(N) a step from here
-                accelerations_serial(pos, m, force.G, force.eps2, acc, force.slabs, force.bounds)
+                accelerations_rows(pos, m, force.G, force.eps2, acc)
         return rows
     if kind is Blocks:
         return lambda force, pos, m, acc: accelerations(pos, m, force.G, force.eps2, acc, force.slabs,

@@ -282,6 +282,20 @@ def accelerations_serial(pos, m, G, eps2, acc, slabs, bounds):
     _combine_blocks(slabs, bounds, G, acc)
 
 
+@jit
+def accelerations_rows(pos, m, G, eps2, acc):
+    """Accelerations at ``pos`` into ``acc`` (3, N), in place: one block of third-law rows on one thread,
+    :func:`accelerations_serial`'s path for ``SMALL_N_MAX < N`` and one block, alone.
+
+    The :class:`~orbitsim.physics.force_context.Rows` context calls it, so a run of that N compiles
+    neither the all-pairs kernel nor the slabs' code of the other paths (about a second of a first run).
+    """
+    acc[:, :] = 0.0
+    # np.int64(0), not the literal 0: the blocks' calls pass an int64, and a literal would compile the rows again
+    _accumulate_rows(pos[0], pos[1], pos[2], m, eps2, np.int64(0), pos.shape[1], acc[0], acc[1], acc[2])
+    _scale(acc, G)
+
+
 @jit_parallel
 def accelerations_parallel(pos, m, G, eps2, acc, slabs, bounds):
     """As :func:`accelerations_serial`, with the blocks spread over Numba's threads.

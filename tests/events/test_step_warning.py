@@ -19,7 +19,7 @@ from click.testing import CliRunner
 
 import orbitsim.events.sampled as sampled
 from orbitsim.cli.main import cli
-from orbitsim.events.timescales import PYTHON_MAX_N, orbit_timescales, orbit_timescales_python, timescales_of
+from orbitsim.events.timescales import INTERPRETED_MAX_N, orbit_timescales, orbit_timescales_python, timescales_of
 from orbitsim.scenario import scenario_from_dict
 from orbitsim.scenario_simulation import scenario_simulation
 
@@ -189,36 +189,70 @@ def _random_states(seed: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 @pytest.mark.parametrize("eps2", [0.0, 0.01])
-@pytest.mark.parametrize("seed", range(6))
-def test_the_interpreted_timescales_are_the_compiled_bits(seed: int, eps2: float) -> None:
-    """The interpreted check (what a run of a few bodies uses, nothing to compile) gives the compiled
-    kernel's outputs bit for bit: same operations in the same order on IEEE doubles."""
-    n = [2, 3, 5, 9, 17, PYTHON_MAX_N][seed]
+@pytest.mark.parametrize("seed", range(8))
+def test_the_interpreted_timescales_are_the_compiled_bits(seed: int, eps2: float,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The interpreted check (what a run's looks use, nothing to compile: numpy for the attractors,
+    the interpreter for the rest) gives the compiled kernel's outputs bit for bit: same operations in
+    the same order on IEEE doubles. The last two states go through the numpy search in blocks of a
+    few rows, as a large N does."""
+    import orbitsim.events.timescales as timescales
+
+    n = [2, 3, 5, 9, 17, 33, 64, 201][seed]
+    if seed >= 6:
+        monkeypatch.setattr(timescales, "_PAIRS_PER_BLOCK", 7 * n)
     pos, vel, m = _random_states(seed, n)
     outputs = []
-    for timescales in (orbit_timescales, orbit_timescales_python):
+    for kernel in (orbit_timescales, orbit_timescales_python):
         tau, attractor, closest = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n)
-        timescales(pos, vel, m, 1.0, eps2, tau, attractor, closest)
+        kernel(pos, vel, m, 1.0, eps2, tau, attractor, closest)
         outputs.append((tau.tobytes(), attractor.tobytes(), closest.tobytes()))
     assert outputs[0] == outputs[1]
     assert np.isfinite(np.frombuffer(outputs[0][0])).any()  # the states exercise the timescale, not only inf
 
 
-def test_timescales_of_goes_compiled_for_many_bodies_and_for_a_non_finite_state(
+def test_the_interpreted_attractors_break_ties_and_skip_coincident_bodies_as_compiled() -> None:
+    """The cases where a search in another order could pick another body: two bodies pulling equally
+    (the first one wins), a body on top of another (r = 0: left out), only massless neighbours (none)."""
+    pos = np.array([[0.0, 1.0, -1.0, 0.0, 0.0, 5.0, 5.0, 9.0],
+                    [0.0, 0.0, 0.0, 2.0, 2.0, 0.0, 0.0, 9.0],
+                    [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 9.0]])
+    vel = np.zeros((3, 8))
+    vel[1, 1:] = 0.3
+    m = np.array([1.0, 1e-3, 1e-3, 0.0, 2e-3, 0.0, 0.0, 0.0])
+    outputs = []
+    for kernel in (orbit_timescales, orbit_timescales_python):
+        tau, attractor, closest = np.empty(8), np.empty(8, dtype=np.int64), np.empty(8)
+        kernel(pos, vel, m, 1.0, 0.0, tau, attractor, closest)
+        outputs.append((tau.tobytes(), attractor.tobytes(), closest.tobytes(), attractor.copy()))
+    assert outputs[0][:3] == outputs[1][:3]
+    attractor = outputs[0][3]
+    assert attractor[0] == 1  # bodies 1 and 2 pull the star equally: the first
+    assert attractor[3] == 0 and attractor[4] == 0  # 3 sits on 4 (r = 0, left out): the star, for both
+    assert attractor[5] == 0 and attractor[6] == 0  # 5 and 6 coincide and are massless
+
+
+def test_timescales_of_compiles_only_for_many_bodies_a_non_finite_state_or_a_spent_budget(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """Where the interpreter is not used: above PYTHON_MAX_N bodies, and for a state with a nan
-    (math.sqrt of a nan must not raise)."""
+    """Where the interpreter is not used: above INTERPRETED_MAX_N bodies, for a state with a nan
+    (math.sqrt of a nan must not raise), and once the process has spent INTERPRETED_BUDGET_S on
+    interpreted looks (so a run that looks often compiles after all)."""
     import orbitsim.events.timescales as timescales
 
     calls: list[str] = []
+    monkeypatch.setattr(timescales, "_interpreted_seconds", [0.0])
     monkeypatch.setattr(timescales, "orbit_timescales", lambda *a: calls.append("compiled"))
     monkeypatch.setattr(timescales, "orbit_timescales_python", lambda *a: calls.append("python"))
-    for n, poison in [(PYTHON_MAX_N, False), (PYTHON_MAX_N + 1, False), (3, True)]:
+    for n, poison in [(INTERPRETED_MAX_N, False), (INTERPRETED_MAX_N + 1, False), (3, True), (3, False)]:
         pos, vel, m = _random_states(1, n)
         if poison:
             vel[1, 2] = np.nan
         timescales_of(pos, vel, m, 1.0, 0.0, np.empty(n), np.empty(n, dtype=np.int64), np.empty(n))
-    assert calls == ["python", "compiled", "compiled"]
+    assert calls == ["python", "compiled", "compiled", "python"]
+    monkeypatch.setattr(timescales, "_interpreted_seconds", [timescales.INTERPRETED_BUDGET_S])
+    pos, vel, m = _random_states(1, 3)
+    timescales_of(pos, vel, m, 1.0, 0.0, np.empty(3), np.empty(3, dtype=np.int64), np.empty(3))
+    assert calls[-1] == "compiled"
 
 
 def test_the_pairs_examined_stay_within_the_budget(monkeypatch: pytest.MonkeyPatch) -> None:
