@@ -71,25 +71,40 @@ def test_a_cold_wisdom_holman_run_with_a_corrector_compiles_each_kernel_once(tmp
     assert not twice, json.dumps(twice, indent=1)
 
 
+#: Bundled scenarios, the force kernel a 10-step run of each must compile, and the kernels it must not:
+#: the disc (201 bodies: one block of rows, serial) and the Plummer sphere (1,000 bodies: blocks in
+#: parallel). Neither compiles the step check, which numpy and the interpreter do below 1,025 bodies.
+_GRAVITY, _DIAGNOSTICS = "orbitsim.physics.gravity.", "orbitsim.physics.diagnostics."
+FORCE_PATHS = {
+    "kepler_disc": (_GRAVITY + "accelerations_rows",
+                    {_GRAVITY + "all_pairs_accelerations", _GRAVITY + "accelerations_serial",
+                     _GRAVITY + "accelerations_blocks", _GRAVITY + "_combine_blocks",
+                     _DIAGNOSTICS + "_potential_parallel"}),
+    "plummer_1k": (_GRAVITY + "accelerations_blocks",
+                   {_GRAVITY + "all_pairs_accelerations", _GRAVITY + "accelerations_serial",
+                    _GRAVITY + "accelerations_rows", _DIAGNOSTICS + "_potential_serial",
+                    _DIAGNOSTICS + "_potential_small"}),
+}
+
+
 @pytest.mark.slow
-def test_a_cold_run_of_two_hundred_bodies_compiles_neither_the_step_check_nor_other_force_paths(
-        tmp_path: Path) -> None:
-    """A 10-step run of the bundled disc (201 bodies, one block of rows) from an empty cache looks at its
-    states without compiling the step check (numpy and the interpreter do it: a second of a 6 s first
-    run), and compiles the rows' force kernel alone, not the all-pairs kernel or the blocks' code
-    beside it (another second); and still each kernel once."""
+@pytest.mark.parametrize("scenario", sorted(FORCE_PATHS))
+def test_a_cold_run_of_many_bodies_compiles_its_own_force_path_and_no_step_check(scenario: str,
+                                                                                 tmp_path: Path) -> None:
+    """A 10-step run from an empty cache looks at its states without compiling the step check (a
+    second of a 6 s first run), and compiles the force kernel and potential of its N's context alone,
+    not the other contexts' beside them (one to two seconds more); and still each kernel once."""
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
     env["ORBITSIM_CACHE_DIR"] = str(tmp_path / "cache")
-    ran = subprocess.run([sys.executable, "-c", PROBE, "run", "kepler_disc", "--steps", "10", "-q", "-o", "out.h5"],
+    ran = subprocess.run([sys.executable, "-c", PROBE, "run", scenario, "--steps", "10", "-q", "-o", "out.h5"],
                          cwd=tmp_path, capture_output=True, text=True, timeout=600, env=env)
     assert ran.returncode == 0, ran.stderr
     report = json.loads(ran.stdout.splitlines()[-1])
     assert report["exit"] == 0, report["output"]
     compiled = report["compiled"]
-    assert "orbitsim.physics.gravity.accelerations_rows" in compiled, sorted(compiled)
-    unused = {"orbitsim.events.timescales.orbit_timescales", "orbitsim.events.timescales.dominant_attractors",
-              "orbitsim.physics.gravity.all_pairs_accelerations", "orbitsim.physics.gravity.accelerations_serial",
-              "orbitsim.physics.gravity._combine_blocks"}
+    used, unused = FORCE_PATHS[scenario]
+    assert used in compiled, sorted(compiled)
+    unused = unused | {"orbitsim.events.timescales.orbit_timescales"}
     assert not unused & set(compiled), sorted(unused & set(compiled))
     # distinct signatures: an inline="always" overload is typed again, with the same types, at each call site
     twice = {name: sigs for name, sigs in compiled.items() if len(set(sigs)) > 1}

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, jit_inline
 from orbitsim.events.bodies import two_body_tau2
 
 __all__ = ["INTERPRETED_BUDGET_S", "INTERPRETED_MAX_N", "orbit_timescales", "orbit_timescales_python",
@@ -27,9 +27,9 @@ __all__ = ["INTERPRETED_BUDGET_S", "INTERPRETED_MAX_N", "orbit_timescales", "orb
 
 #: Up to this many bodies :func:`timescales_of` can look without compiling anything: the O(N^2) search
 #: for attractors in numpy, the O(N) rest in the interpreter (~40 us a body: 8 ms a look at N = 201,
-#: up to 70 ms at this N). Compiling :func:`orbit_timescales` costs a first run about a second, a tenth
-#: of a 10-step run of 200 bodies.
-INTERPRETED_MAX_N = 512
+#: up to ~150 ms at this N). Compiling :func:`orbit_timescales` costs a first run more than a second, a
+#: sixth of a 10-step run of 200 bodies.
+INTERPRETED_MAX_N = 1024
 
 #: Seconds of interpreted looks a process may spend before :func:`timescales_of` compiles: about what
 #: the compile costs, so a run that looks often pays at most twice the cheaper of the two ways (and a
@@ -40,7 +40,7 @@ INTERPRETED_BUDGET_S = 1.0
 _PAIRS_PER_BLOCK = 2**20
 
 
-@jit
+@jit_inline
 def dominant_attractors(pos, m, G, attractor):
     """``attractor`` (N,) int64: the body pulling each body hardest, G m_j / r^2 (-1 for none), the
     first such j where two pull equally; pairs at r = 0 are left out."""
@@ -63,7 +63,7 @@ def dominant_attractors(pos, m, G, attractor):
                     attractor[j] = i
 
 
-@jit
+@jit_inline
 def timescales_about(pos, vel, m, G, eps2, attractor, tau, closest):
     """``tau`` and ``closest`` (N,) of every body about its ``attractor`` (:func:`orbit_timescales`)."""
     n = pos.shape[1]
@@ -107,6 +107,8 @@ def orbit_timescales(pos, vel, m, G, eps2, tau, attractor, closest):
     gets ``tau = inf``), as the events watch does. With softening eps (``eps2`` = eps^2) no
     timescale is shorter than a circular orbit's at r = eps, sqrt(eps^3 / G m): the softened force
     is smooth inside eps, and two bodies passing within it are resolved at that timescale.
+
+    Its two halves are inlined (one compilation); :func:`orbit_timescales_python` runs them uncompiled.
     """
     dominant_attractors(pos, m, G, attractor)
     timescales_about(pos, vel, m, G, eps2, attractor, tau, closest)
@@ -158,14 +160,27 @@ def orbit_timescales_python(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: 
 _interpreted_seconds = [0.0]
 
 
+def _compiled_at_hand() -> bool:
+    """Whether :func:`orbit_timescales` runs without compiling: compiled in this process already, or in
+    Numba's on-disk cache (its index, read through Numba's private cache object: where that fails, False,
+    and the looks are interpreted until the budget is spent, as on a cold cache)."""
+    if getattr(orbit_timescales, "signatures", None):
+        return True
+    try:
+        return bool(orbit_timescales._cache._cache_file._load_index())
+    except Exception:  # any change in Numba's internals (or NUMBA_DISABLE_JIT) means "not known to be cached"
+        return False
+
+
 def timescales_of(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, eps2: float, tau: np.ndarray,
                   attractor: np.ndarray, closest: np.ndarray) -> None:
-    """:func:`orbit_timescales`, interpreted (:func:`orbit_timescales_python`: a run's looks then compile
-    nothing) for a finite state of at most :data:`INTERPRETED_MAX_N` bodies until the process has spent
-    :data:`INTERPRETED_BUDGET_S` on them, compiled otherwise. A state that is not finite goes to the
-    compiled code, where ``math.sqrt`` of a nan cannot raise."""
+    """:func:`orbit_timescales`, compiled where that costs no compilation (:func:`_compiled_at_hand`),
+    else interpreted (:func:`orbit_timescales_python`: a run's looks then compile nothing) for a finite
+    state of at most :data:`INTERPRETED_MAX_N` bodies until the process has spent
+    :data:`INTERPRETED_BUDGET_S` on them, and compiled after that. A state that is not finite goes to
+    the compiled code, where ``math.sqrt`` of a nan cannot raise."""
     if (pos.shape[1] <= INTERPRETED_MAX_N and _interpreted_seconds[0] < INTERPRETED_BUDGET_S
-            and np.isfinite(pos).all() and np.isfinite(vel).all()):
+            and np.isfinite(pos).all() and np.isfinite(vel).all() and not _compiled_at_hand()):
         started = time.perf_counter()
         orbit_timescales_python(pos, vel, m, G, eps2, tau, attractor, closest)
         _interpreted_seconds[0] += time.perf_counter() - started

@@ -159,6 +159,8 @@ def _potential_serial(pos, m, G, eps2):
 @jit_parallel_exact
 def _potential_parallel(pos, m, G, eps2, rows):
     n = m.shape[0]
+    if rows.shape[0] < n:  # a caller's scratch for a serial N (the Blocks context's N never has one)
+        rows = np.zeros(n)
     # One buffer per chunk, allocated before the parallel loop (an allocation inside a prange
     # body may be hoisted out of it by Numba and then shared between threads).
     bufs = np.empty((POTENTIAL_STRIDES, TERM_BLOCK))
@@ -200,8 +202,8 @@ def _potential_of(force, pos, m, rows):
         return lambda force, pos, m, rows: -force.G * _potential_small(pos, m, force.eps2)
     if kind is Rows:
         return lambda force, pos, m, rows: _potential_serial(pos, m, force.G, force.eps2)
-    if kind is Blocks:
-        return lambda force, pos, m, rows: potential_energy(pos, m, force.G, force.eps2, rows)
+    if kind is Blocks:  # N >= PARALLEL_MIN_N >= PARALLEL_POTENTIAL_MIN_N: potential_energy's parallel branch
+        return lambda force, pos, m, rows: _potential_parallel(pos, m, force.G, force.eps2, rows)
     return None
 
 

@@ -29,7 +29,7 @@ from numba.extending import overload
 from orbitsim._jit import jit, stop_requested
 from orbitsim.physics.gravity import (
     SMALL_N_MAX,
-    accelerations,
+    accelerations_blocks,
     accelerations_rows,
     all_pairs_accelerations,
     force_scratch,
@@ -69,7 +69,7 @@ class Rows(ForceContext):
 
 
 class Blocks(ForceContext):
-    """Blocks of rows spread over the threads: :func:`~orbitsim.physics.gravity.accelerations_parallel`."""
+    """Blocks of rows spread over the threads: :func:`~orbitsim.physics.gravity.accelerations_blocks`."""
 
     __slots__ = ()
 
@@ -106,8 +106,10 @@ def _newtonian_accelerations(force, pos, m, acc):
                 accelerations_rows(pos, m, force.G, force.eps2, acc)
         return rows
     if kind is Blocks:
-        return lambda force, pos, m, acc: accelerations(pos, m, force.G, force.eps2, acc, force.slabs,
-                                                        force.bounds)
+        def blocks(force, pos, m, acc):
+            if not stop_requested():
+                accelerations_blocks(pos, m, force.G, force.eps2, acc, force.slabs, force.bounds)
+        return blocks
     return None
 
 

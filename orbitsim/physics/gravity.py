@@ -296,7 +296,7 @@ def accelerations_rows(pos, m, G, eps2, acc):
     _scale(acc, G)
 
 
-@jit_parallel
+@jit
 def accelerations_parallel(pos, m, G, eps2, acc, slabs, bounds):
     """As :func:`accelerations_serial`, with the blocks spread over Numba's threads.
 
@@ -305,10 +305,18 @@ def accelerations_parallel(pos, m, G, eps2, acc, slabs, bounds):
     of two: on a shared machine every region waits for its slowest thread), so the result is
     bit-identical to the serial kernel and independent of the thread count.
     """
-    blocks = bounds.shape[0] - 1
-    if blocks == 1:  # nothing to spread: the serial kernel, so the bits are the same by construction
+    if bounds.shape[0] == 2:  # nothing to spread: the serial kernel, so the bits are the same by construction
         accelerations_serial(pos, m, G, eps2, acc, slabs, bounds)
         return
+    accelerations_blocks(pos, m, G, eps2, acc, slabs, bounds)
+
+
+@jit_parallel
+def accelerations_blocks(pos, m, G, eps2, acc, slabs, bounds):
+    """:func:`accelerations_parallel` for two blocks or more, alone: the
+    :class:`~orbitsim.physics.force_context.Blocks` context calls it, so a run of that N compiles neither
+    the serial kernel nor the all-pairs one (a second and a half of a first run at N = 1000)."""
+    blocks = bounds.shape[0] - 1
     for b in prange(blocks):
         slab = slabs[b]
         _zero_from(slab, bounds[b])

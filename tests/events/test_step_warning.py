@@ -9,6 +9,9 @@ cost; the steps and their bits are untouched), and one warning, naming the body 
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -241,6 +244,7 @@ def test_timescales_of_compiles_only_for_many_bodies_a_non_finite_state_or_a_spe
 
     calls: list[str] = []
     monkeypatch.setattr(timescales, "_interpreted_seconds", [0.0])
+    monkeypatch.setattr(timescales, "_compiled_at_hand", lambda: False)  # a cold cache
     monkeypatch.setattr(timescales, "orbit_timescales", lambda *a: calls.append("compiled"))
     monkeypatch.setattr(timescales, "orbit_timescales_python", lambda *a: calls.append("python"))
     for n, poison in [(INTERPRETED_MAX_N, False), (INTERPRETED_MAX_N + 1, False), (3, True), (3, False)]:
@@ -253,6 +257,29 @@ def test_timescales_of_compiles_only_for_many_bodies_a_non_finite_state_or_a_spe
     pos, vel, m = _random_states(1, 3)
     timescales_of(pos, vel, m, 1.0, 0.0, np.empty(3), np.empty(3, dtype=np.int64), np.empty(3))
     assert calls[-1] == "compiled"
+
+
+def test_timescales_of_goes_compiled_from_the_first_look_where_the_kernel_is_at_hand(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A warm run pays no interpreted looks: once the kernel is compiled in the process, or sits in
+    Numba's cache on disk (a fresh process with that cache), the first look is compiled."""
+    import orbitsim.events.timescales as timescales
+
+    pos, vel, m = _random_states(2, 40)
+    orbit_timescales(pos, vel, m, 1.0, 0.0, np.empty(40), np.empty(40, dtype=np.int64), np.empty(40))
+    assert timescales._compiled_at_hand()
+    probe = ("import numpy as np, orbitsim.events.timescales as t\n"
+             "print(t._compiled_at_hand())\n"
+             "n = 3; t.orbit_timescales(np.ones((3, n)) * np.arange(n), np.zeros((3, n)), np.ones(n), 1.0, 0.0,"
+             " np.empty(n), np.empty(n, dtype=np.int64), np.empty(n))\n"
+             "print(t._compiled_at_hand())\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    env["ORBITSIM_CACHE_DIR"] = str(tmp_path / "cache")
+    cold = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=600)
+    warm = subprocess.run([sys.executable, "-c", probe.split("n = 3")[0]], capture_output=True, text=True, env=env,
+                          timeout=600)
+    assert cold.stdout.split() == ["False", "True"], cold.stderr
+    assert warm.stdout.split() == ["True"], warm.stderr
 
 
 def test_the_pairs_examined_stay_within_the_budget(monkeypatch: pytest.MonkeyPatch) -> None:

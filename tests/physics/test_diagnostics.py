@@ -56,3 +56,18 @@ def test_potential_matches_the_reference(n: int) -> None:
     want = naive.potential_energy(pos.T, m, G, EPS)
     # Both sum the same N(N-1)/2 positive terms in different orders: a few ulp per term at most.
     assert abs(got - want) <= 1e-13 * abs(want)
+
+
+@pytest.mark.parametrize("n", [5, 200, 400])
+def test_each_force_context_compiles_one_path_with_the_serial_bits(n: int) -> None:
+    """A sample's potential goes by the force context's kind (all pairs, serial rows, parallel rows:
+    one path compiled per kind) and gives the serial kernel's bits; the parallel rows allocate their
+    own scratch where a caller passes none."""
+    from orbitsim.physics.force_context import kernel_class, make_force
+
+    pos, m = cloud(n)
+    serial = d.potential_energy(pos, m, G, EPS * EPS, np.zeros(0))
+    force = make_force(G, EPS, n)
+    assert kernel_class(numba.typeof(force)).__name__ == {5: "AllPairs", 200: "Rows", 400: "Blocks"}[n]
+    assert d.potential_energy_at(force, pos, m, d.potential_rows_scratch(n)) == serial
+    assert d._potential_parallel(pos, m, G, EPS * EPS, np.zeros(0)) == serial
