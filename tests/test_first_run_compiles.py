@@ -79,7 +79,7 @@ FORCE_PATHS = {
     "kepler_disc": (_GRAVITY + "accelerations_rows",
                     {_GRAVITY + "all_pairs_accelerations", _GRAVITY + "accelerations_serial",
                      _GRAVITY + "accelerations_blocks", _GRAVITY + "_combine_blocks",
-                     _DIAGNOSTICS + "_potential_parallel"}),
+                     _DIAGNOSTICS + "_potential_parallel", _DIAGNOSTICS + "_potential_small"}),
     "plummer_1k": (_GRAVITY + "accelerations_blocks",
                    {_GRAVITY + "all_pairs_accelerations", _GRAVITY + "accelerations_serial",
                     _GRAVITY + "accelerations_rows", _DIAGNOSTICS + "_potential_serial",

@@ -36,6 +36,7 @@ from numba.extending import overload
 
 from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
 from orbitsim.physics.force_context import AllPairs, Blocks, Rows, kernel_class
+from orbitsim.physics.gravity import SMALL_N_MAX
 
 #: Above this N the O(N^2) potential runs its rows in parallel (its rows are independent).
 PARALLEL_POTENTIAL_MIN_N = 384
@@ -43,9 +44,11 @@ PARALLEL_POTENTIAL_MIN_N = 384
 #: Terms per buffered block: 2 KiB, which stays in L1 next to the four position/mass streams.
 TERM_BLOCK = 256
 
-#: From this N on the serial potential buffers its terms; below it a row is too short for the
-#: vector loop to pay for its buffer allocation and per-row calls, and small runs sample often.
-BUFFERED_POTENTIAL_MIN_N = 64
+#: From this N on the serial potential buffers its terms: the N at which the force leaves the all-pairs
+#: kernel (SMALL_N_MAX + 1), so a force context's kind names one potential path to compile. Below it a row
+#: is too short for the vector loop to pay for its buffer and per-row calls; from 49 bodies on the buffered
+#: rows were already faster (N = 49, 56, 63: 9-12, 14-16, 17-18 us a sample against 14, 19, 24-26).
+BUFFERED_POTENTIAL_MIN_N = SMALL_N_MAX + 1
 
 #: Row strides of the parallel potential: chunk c takes rows c, c + S, c + 2S, ... so the chunks
 #: hold nearly equal shares of the N(N-1)/2 terms whatever the thread count.
@@ -146,9 +149,14 @@ def _potential_row_buffered(pos, m, eps2, i, buf):
 
 @jit
 def _potential_serial(pos, m, G, eps2):
-    n = m.shape[0]
-    if n < BUFFERED_POTENTIAL_MIN_N:
+    if m.shape[0] < BUFFERED_POTENTIAL_MIN_N:
         return -G * _potential_small(pos, m, eps2)
+    return _potential_buffered(pos, m, G, eps2)
+
+
+@jit
+def _potential_buffered(pos, m, G, eps2):
+    n = m.shape[0]
     total = 0.0
     buf = np.empty(TERM_BLOCK)  # one small allocation per evaluation, none per row
     for i in range(n):
@@ -200,8 +208,8 @@ def _potential_of(force, pos, m, rows):
     kind = kernel_class(force)
     if kind is AllPairs:  # N <= 48 < BUFFERED_POTENTIAL_MIN_N: _potential_serial's first branch
         return lambda force, pos, m, rows: -force.G * _potential_small(pos, m, force.eps2)
-    if kind is Rows:
-        return lambda force, pos, m, rows: _potential_serial(pos, m, force.G, force.eps2)
+    if kind is Rows:  # N > SMALL_N_MAX, so N >= BUFFERED_POTENTIAL_MIN_N: _potential_serial's second branch
+        return lambda force, pos, m, rows: _potential_buffered(pos, m, force.G, force.eps2)
     if kind is Blocks:  # N >= PARALLEL_MIN_N >= PARALLEL_POTENTIAL_MIN_N: potential_energy's parallel branch
         return lambda force, pos, m, rows: _potential_parallel(pos, m, force.G, force.eps2, rows)
     return None
