@@ -8,6 +8,8 @@ must equal an uninterrupted run's in every dataset, bit for bit. The hard kills 
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import shutil
 from pathlib import Path
 
@@ -104,6 +106,41 @@ def test_restore_refuses_a_state_that_does_not_fit() -> None:
     wh = Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01)
     with pytest.raises(CheckpointError, match="work"):
         restore_state(wh, capture_state(verlet))
+
+
+def test_work_parts_a_run_does_not_use_are_none_and_older_checkpoints_of_them_still_fit() -> None:
+    """Wisdom-Holman without a corrector keeps its stage tables as None (so it compiles no corrector): a
+    checkpoint records them as "n" and restores them; a checkpoint written before, which kept empty
+    arrays there, still resumes the same run bit for bit; a non-empty table there, or a table where the
+    run keeps None, is refused (other settings)."""
+    sc = scenario(SYSTEM)
+    sims = [Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01) for _ in range(3)]
+    assert sims[0].work.stage_a is None and sims[0].work.stage_b is None
+    list(sims[0].chunks(np.array([70]), record_positions=False))
+    state = capture_state(sims[0])
+    layout = json.loads(state.work_layout)
+    fields = list(type(sims[0].work)._fields)
+    stage_slots = [fields.index("stage_a"), fields.index("stage_b")]
+    assert [layout[i] for i in stage_slots] == ["n", "n"]
+    # the same state as a checkpoint from before: empty arrays in the tables' places
+    old_layout, old_arrays, arrays = [], [], iter(state.work)
+    for i, part in enumerate(layout):
+        old_layout.append("a" if i in stage_slots else part)
+        old_arrays.append(np.zeros(0) if i in stage_slots else next(arrays))
+    old = dataclasses.replace(state, work=tuple(old_arrays), work_layout=json.dumps(old_layout))
+    restore_state(sims[1], state)
+    restore_state(sims[2], old)
+    for sim in sims:
+        list(sim.chunks(np.array([120]), record_positions=False))
+    assert all(np.array_equal(sims[0].pos, s.pos) and np.array_equal(sims[0].vel, s.vel) for s in sims[1:])
+    wrong = dataclasses.replace(state, work=tuple(np.ones(3) if i in stage_slots else a
+                                                  for i, a in enumerate(old_arrays)),
+                                work_layout=json.dumps(old_layout))
+    with pytest.raises(CheckpointError, match="work layout does not fit"):
+        restore_state(Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01), wrong)
+    corrected = Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01, settings={"corrector": 3})
+    with pytest.raises(CheckpointError, match="work layout does not fit"):
+        restore_state(corrected, state)
 
 
 # -- resume ------------------------------------------------------------------------------------

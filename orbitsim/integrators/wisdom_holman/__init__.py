@@ -69,7 +69,7 @@ from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
 from orbitsim.forces.hooks import has_velocity_operator, velocity_operator
 from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sample_loop
-from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector
+from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector_if_any
 from orbitsim.integrators.wisdom_holman.operators import (
     DEMOCRATIC_HELIOCENTRIC,
     F_PHASE,
@@ -156,7 +156,8 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
         mu = G * np.cumsum(m)  # G M_i, M_i summed left to right
     else:
         mu = np.full(n, G * m[0])
-    stage_a, stage_b = CORRECTOR_STAGES[config["corrector"]]
+    # no corrector: None, a type of its own, so a run without one compiles none (apply_corrector_if_any)
+    stage_a, stage_b = CORRECTOR_STAGES[config["corrector"]] if config["corrector"] else (None, None)
     flags = np.zeros(4, dtype=np.int64)
     flags[F_PHASE] = PHASE_UNSET
     state = tuple(np.zeros((3, n)) for _ in range(8))
@@ -164,8 +165,8 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
         *state,
         weights=jacobi_weights(m),
         mu=np.ascontiguousarray(mu),
-        stage_a=stage_a.copy(),
-        stage_b=stage_b.copy(),
+        stage_a=None if stage_a is None else stage_a.copy(),
+        stage_b=None if stage_b is None else stage_b.copy(),
         flags=flags,
         config=np.array([coordinates, config["corrector"]], dtype=np.int64),
         kscratch=np.zeros((KEPLER_SCRATCH_ROWS, n)),
@@ -211,7 +212,7 @@ def _start(pos, vel, m, force, dt, work):
     for k in range(flags.shape[0]):
         flags[k] = 0
     flags[F_PHASE] = PHASE_SYNCED
-    return apply_corrector(jpos, jvel, m, force, dt, 1.0, work)
+    return apply_corrector_if_any(jpos, jvel, m, force, dt, 1.0, work)
 
 
 @jit_inline
@@ -227,7 +228,7 @@ def _synchronize(pos, vel, m, force, dt, work):
     if status != KEPLER_OK:
         return status, body
     com_drift(spos, svel, half)
-    status, body = apply_corrector(spos, svel, m, force, dt, -1.0, work)
+    status, body = apply_corrector_if_any(spos, svel, m, force, dt, -1.0, work)
     if status != KEPLER_OK:
         return status, body
     coordinates = work.config[0]

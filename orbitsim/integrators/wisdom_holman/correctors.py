@@ -31,6 +31,8 @@ References
 from __future__ import annotations
 
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from orbitsim._jit import jit
 from orbitsim.forces.hooks import gravity_only
@@ -121,17 +123,28 @@ def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, ks
     return kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
 
 
+def apply_corrector_if_any(jpos, jvel, m, force, dt, inv, work):
+    """:func:`apply_corrector` where ``work`` holds a corrector's stage tables, nothing (``(KEPLER_OK, 0)``)
+    where they are None: chosen while Numba types the caller (jitted callers only), so a run without a
+    corrector compiles none (its stages cost 5-8 s of a first Wisdom-Holman run)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+@overload(apply_corrector_if_any, inline="always")
+def _apply_corrector_if_any(jpos, jvel, m, force, dt, inv, work):
+    if isinstance(work.types[work.fields.index("stage_a")], types.NoneType):
+        return lambda jpos, jvel, m, force, dt, inv, work: (np.int64(KEPLER_OK), np.int64(0))
+    return lambda jpos, jvel, m, force, dt, inv, work: apply_corrector(jpos, jvel, m, force, dt, inv, work)
+
+
 @jit
 def apply_corrector(jpos, jvel, m, force, dt, inv, work):
     """C (``inv = 1.0``) or C^-1 (``inv = -1.0``) of the selected order; returns ``(status, body)``.
 
-    The stage tables in ``work`` are empty when no corrector is selected. Correctors need Jacobi
-    coordinates (enforced by the settings validation; checked here too).
+    Correctors need Jacobi coordinates (enforced by the settings validation; checked here too).
     """
     stage_a = work.stage_a
     stage_b = work.stage_b
-    if stage_a.shape[0] == 0:
-        return KEPLER_OK, 0
     if work.config[0] != JACOBI:
         raise ValueError("wisdom_holman: symplectic correctors need Jacobi coordinates")
     G = force.G

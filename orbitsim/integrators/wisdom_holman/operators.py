@@ -69,8 +69,8 @@ class WHWork(NamedTuple):
     last_vel: np.ndarray  #: (3, N) its velocities
     weights: np.ndarray  #: (N,) Jacobi weights m_i / M_i
     mu: np.ndarray  #: (N,) Kepler parameter of each body
-    stage_a: np.ndarray  #: (S,) corrector stages: Kepler coefficients, in units of dt
-    stage_b: np.ndarray  #: (S,) corrector stages: kick coefficients, in units of dt
+    stage_a: np.ndarray | None  #: (S,) corrector stages: Kepler coefficients, in units of dt (None: no corrector)
+    stage_b: np.ndarray | None  #: (S,) corrector stages: kick coefficients, in units of dt (None: no corrector)
     flags: np.ndarray  #: int64 (4,): phase, failure status, failing body, failing step (F_* below)
     config: np.ndarray  #: int64 (2,): coordinates id, corrector order
     kscratch: np.ndarray  #: (KEPLER_SCRATCH_ROWS, N) per-body scratch of the Kepler solver
