@@ -71,6 +71,25 @@ def test_a_cold_wisdom_holman_run_with_a_corrector_compiles_each_kernel_once(tmp
     assert not twice, json.dumps(twice, indent=1)
 
 
+@pytest.mark.slow
+def test_a_cold_wisdom_holman_run_without_a_corrector_compiles_none(tmp_path: Path) -> None:
+    """Without a corrector the stage tables are None, and the run compiles no corrector stage (5-8 s
+    of a first run when they were empty arrays behind a run-time branch)."""
+    (tmp_path / "wh.yaml").write_text(WH_CORRECTED.replace("corrector: 11", "corrector: 0"), encoding="utf-8")
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    env["ORBITSIM_CACHE_DIR"] = str(tmp_path / "cache")
+    ran = subprocess.run([sys.executable, "-c", PROBE, "run", "wh.yaml", "-q", "-o", "out.h5"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=600, env=env)
+    assert ran.returncode == 0, ran.stderr
+    report = json.loads(ran.stdout.splitlines()[-1])
+    assert report["exit"] == 0, report["output"]
+    compiled = report["compiled"]
+    assert "orbitsim.integrators.wisdom_holman.run" in compiled, sorted(compiled)
+    # the overload's choice, a lambda returning (KEPLER_OK, 0), is all that is compiled of the module
+    correctors = sorted(name for name in compiled if ".correctors." in name and "<lambda>" not in name)
+    assert correctors == [], correctors
+
+
 #: Bundled scenarios, the force kernel a 10-step run of each must compile, and the kernels it must not:
 #: the disc (201 bodies: one block of rows, serial) and the Plummer sphere (1,000 bodies: blocks in
 #: parallel). Neither compiles the step check, which numpy and the interpreter do below 1,025 bodies.
