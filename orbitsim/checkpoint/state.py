@@ -29,10 +29,12 @@ def capture_state(sim: Simulation) -> SimState:
 
 
 def _flatten(obj: Any, out: list[np.ndarray]) -> Any:
-    """Append every array (copied) and constant of ``obj`` to ``out``; return its nesting ("n" for a
-    None: a part the run does not use, such as Wisdom-Holman's corrector tables without a corrector)."""
+    """Append every array (copied) and constant of ``obj`` to ``out``; return its nesting. A None (a part
+    the run does not use: Wisdom-Holman's corrector tables without a corrector) is kept as an empty
+    array, as such parts were before they were None, so checkpoints keep their bytes and layout."""
     if obj is None:
-        return "n"
+        out.append(np.zeros(0))
+        return "a"
     if isinstance(obj, np.ndarray):
         out.append(obj.copy())
         return "a"
@@ -108,15 +110,9 @@ def restore_work(work: Any, state: SimState) -> bool:
 def _restore(obj: Any, layout: Any, arrays: Any, run_constants: tuple[int, ...] = ()) -> None:
     """Write ``arrays`` back into ``obj`` following ``layout``; top-level items whose index is in
     ``run_constants`` are constants of the run, not of the checkpoint, and are not compared."""
-    if obj is None:  # a part of the work the run does not use
-        if layout == "n":
-            return
-        # an empty array there: a checkpoint from before such parts were None (Wisdom-Holman's corrector
-        # tables without a corrector were empty arrays), of the same settings
+    if obj is None:  # a part of the work the run does not use: an empty array in the checkpoint (_flatten)
         if layout == "a" and next(arrays).size == 0:
             return
-        raise CheckpointError("checkpoint work layout does not fit this integrator")
-    if layout == "n":
         raise CheckpointError("checkpoint work layout does not fit this integrator")
     if layout == "a":
         saved = next(arrays)

@@ -7,7 +7,11 @@ class names the kernel of :mod:`orbitsim.physics.gravity` that the N of the run 
 (the parallel kernel). The classes are distinct Numba types, so a step calls
 :func:`newtonian_accelerations`, which resolves to that one kernel when the step is compiled: a
 5-body run compiles neither the row kernels nor the parallel one (they cost seconds on a first
-run), and a 1000-body run nothing it does not call.
+run), and a 1000-body run nothing it does not call. Each class's kernel (``all_pairs_accelerations``,
+``accelerations_rows``, ``accelerations_blocks``, and the sample's potential beside it,
+:func:`orbitsim.physics.diagnostics.potential_of`) holds no run-time branch to another class's: Numba
+compiles both sides of a branch, and such branches had cost a 201-body first run a second and a
+1,000-body one two (benchmarks/README.md, "First runs, third pass").
 
 :func:`newtonian_accelerations` is inlined at Numba's IR level into the scheme's loop. Numba gives
 an inlined function its own copies of its array arguments, each an atomic increment and decrement

@@ -108,39 +108,38 @@ def test_restore_refuses_a_state_that_does_not_fit() -> None:
         restore_state(wh, capture_state(verlet))
 
 
-def test_work_parts_a_run_does_not_use_are_none_and_older_checkpoints_of_them_still_fit() -> None:
+def test_work_parts_a_run_does_not_use_are_none_and_checkpoint_as_before() -> None:
     """Wisdom-Holman without a corrector keeps its stage tables as None (so it compiles no corrector): a
-    checkpoint records them as "n" and restores them; a checkpoint written before, which kept empty
-    arrays there, still resumes the same run bit for bit; a non-empty table there, or a table where the
-    run keeps None, is refused (other settings)."""
+    checkpoint stores them as the empty arrays it stored before they were None (same bytes, same
+    layout), and restores them, bit for bit; a non-empty table there (other settings) is refused, and
+    so is a None-table checkpoint restored into a run with a corrector."""
     sc = scenario(SYSTEM)
-    sims = [Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01) for _ in range(3)]
+    sims = [Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01) for _ in range(2)]
     assert sims[0].work.stage_a is None and sims[0].work.stage_b is None
     list(sims[0].chunks(np.array([70]), record_positions=False))
     state = capture_state(sims[0])
-    layout = json.loads(state.work_layout)
     fields = list(type(sims[0].work)._fields)
     stage_slots = [fields.index("stage_a"), fields.index("stage_b")]
-    assert [layout[i] for i in stage_slots] == ["n", "n"]
-    # the same state as a checkpoint from before: empty arrays in the tables' places
-    old_layout, old_arrays, arrays = [], [], iter(state.work)
-    for i, part in enumerate(layout):
-        old_layout.append("a" if i in stage_slots else part)
-        old_arrays.append(np.zeros(0) if i in stage_slots else next(arrays))
-    old = dataclasses.replace(state, work=tuple(old_arrays), work_layout=json.dumps(old_layout))
+    layout = json.loads(state.work_layout)
+    assert [layout[i] for i in stage_slots] == ["a", "a"]
+    flat_slots = [sum(1 for part in layout[:i] for _ in _leaves(part)) for i in stage_slots]
+    assert all(state.work[k].shape == (0,) and state.work[k].dtype == np.float64 for k in flat_slots)
     restore_state(sims[1], state)
-    restore_state(sims[2], old)
     for sim in sims:
         list(sim.chunks(np.array([120]), record_positions=False))
-    assert all(np.array_equal(sims[0].pos, s.pos) and np.array_equal(sims[0].vel, s.vel) for s in sims[1:])
-    wrong = dataclasses.replace(state, work=tuple(np.ones(3) if i in stage_slots else a
-                                                  for i, a in enumerate(old_arrays)),
-                                work_layout=json.dumps(old_layout))
+    assert np.array_equal(sims[0].pos, sims[1].pos) and np.array_equal(sims[0].vel, sims[1].vel)
+    wrong = dataclasses.replace(state, work=tuple(np.ones(3) if k in flat_slots else a
+                                                  for k, a in enumerate(state.work)))
     with pytest.raises(CheckpointError, match="work layout does not fit"):
         restore_state(Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01), wrong)
     corrected = Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01, settings={"corrector": 3})
-    with pytest.raises(CheckpointError, match="work layout does not fit"):
+    with pytest.raises(CheckpointError, match="do not fit"):
         restore_state(corrected, state)
+
+
+def _leaves(layout: object) -> list[str]:
+    """The array and constant leaves of a work layout, in order."""
+    return [layout] if isinstance(layout, str) else [leaf for part in layout for leaf in _leaves(part)]
 
 
 # -- resume ------------------------------------------------------------------------------------
