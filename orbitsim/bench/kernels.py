@@ -51,7 +51,7 @@ def _repeat_serial(kernel, reps, pos, m, eps2, acc):
             gravity.all_pairs_accelerations(pos, m, 1.0, eps2, acc)
         else:
             acc[:, :] = 0.0
-            gravity._accumulate_rows(pos[0], pos[1], pos[2], m, eps2, 0, n, acc[0], acc[1], acc[2])
+            gravity._accumulate_rows(pos[0], pos[1], pos[2], m, eps2, np.int64(0), n, acc[0], acc[1], acc[2])
 
 
 def _evaluators(n: int, threads: int) -> dict[str, Callable[[int], None]]:

@@ -9,6 +9,8 @@ keeps |delta| bounded (exact: it moves no bit of either indicator).
 
 from __future__ import annotations
 
+import numpy as np
+
 from orbitsim._jit import jit_inline
 from orbitsim.chaos.megno import deltad_delta, megno_update, rescale_power_of_two
 from orbitsim.forces.tangent import add_tangent_kick_forces
@@ -20,7 +22,7 @@ def megno_after_step(megno, pos, m, force, dpos, dvel, dacc, t, dt):
     """The MEGNO sums after a step of ``dt`` that ended at time ``t`` with state ``pos`` and tangent
     state ``dpos``, ``dvel`` (3, N); ``dacc`` (3, N) is scratch. Returns ``(megno, halvings)``,
     ``halvings`` the number of 2^-200 rescalings of the tangent state done."""
-    tangent_accelerations(pos, m, force.G, force.eps2, dpos, dacc, ALL_PAIRS)
+    tangent_accelerations(pos, m, force.G, force.eps2, dpos, dacc, np.int64(ALL_PAIRS))
     add_tangent_kick_forces(force, pos, m, dpos, dacc)
     dY = dt * 2.0 * (t - megno.initial_t) * deltad_delta(dpos, dvel, dacc)
     megno = megno_update(megno, t, dY, dt)

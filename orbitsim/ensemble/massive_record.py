@@ -12,6 +12,8 @@ massive bodies' positions at the kick and their state at the end of the step.
 
 from __future__ import annotations
 
+import numpy as np
+
 from orbitsim._jit import jit, jit_inline
 from orbitsim.chaos.megno import deltad_delta_sums, tangent_norm2
 from orbitsim.ensemble.kernels import _stop_reason
@@ -128,7 +130,7 @@ def massive_block(pos, vel, dpos, dvel, m, force, dt, weights, mu, scratch, esca
         jacobi_to_inertial(jvel, weights, vel)
         jacobi_to_inertial(djpos, weights, dpos)
         jacobi_to_inertial(djvel, weights, dvel)
-        tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+        tangent_accelerations(pos, m, G, eps2, dpos, dacc, np.int64(ALL_PAIRS))
         _put(rec, s, V_POS, q, pos)
         _put(rec, s, V_VEL, q, vel)
         _put(rec, s, V_DPOS, q, dpos)

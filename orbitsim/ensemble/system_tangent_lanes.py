@@ -121,7 +121,7 @@ def _megno_lanes(g, n, G, eps2, dt, t, t_start, n_before, width):
     for b in range(n):  # the new state into the rows the tangent gravity reads (scratch until the next kick)
         _copy_rows(g, block(b), IPOS, block(b), P, 3)
         _copy_rows(g, block(b), DIPOS, block(b), DP, 3)
-    tangent_gravity_lanes(g, n, G, eps2, 1, width)
+    tangent_gravity_lanes(g, n, G, eps2, np.int64(1), width)
     b0 = block(0)
     for r in range(3):
         carry = _row(b0, CARRY + r)

@@ -188,7 +188,8 @@ def drift_tangent_lanes(g, base, h):
 def tangent_gravity_lanes(g, n, G, eps2, first_i, width):
     """:func:`orbitsim.physics.tangent.tangent_accelerations` of every lane at IPOS, DIPOS into DACC, rows i from
     ``first_i`` (1: every pair; 2: without (0, 1)). Pair (i, j < i) in j's block, row i's sum carried from j to
-    j + 1, then set in i's block: the scalar's sum from zero (nothing was taken from row i before)."""
+    j + 1, then set in i's block: the scalar's sum from zero (nothing was taken from row i before).
+    ``first_i`` comes as an int64, never a literal: one compilation serves both callers (2-4 CPU-s each)."""
     for b in range(n):
         for c in range(3):
             dacc = _row(block(b), DACC + c)
@@ -301,7 +302,7 @@ def kick_tangent_lanes(g, n, G, eps2, dt, width):
             g[accy + lane] += g[cy + lane]
             g[accz + lane] += g[cz + lane]
     # the tangent gravity without the (0, 1) pair, at the kick's inertial positions
-    tangent_gravity_lanes(g, n, G, eps2, 2, width)
+    tangent_gravity_lanes(g, n, G, eps2, np.int64(2), width)
     # both to Jacobi (inertial_to_jacobi, in place): the interior centre of mass carried from body 1 up
     _copy_rows(g, block(1), CARRY, b0, ACC, 3)
     _copy_rows(g, block(1), CARRY + 3, b0, DACC, 3)

@@ -145,7 +145,7 @@ def advance_dkd_chaos(pos, vel, acc, m, force, dt, t0, n_done, n_to, drifts, kic
         for s in range(kicks.shape[0]):
             newtonian_accelerations(force, pos, m, acc)
             add_kick_forces(force, pos, m, acc)
-            tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+            tangent_accelerations(pos, m, G, eps2, dpos, dacc, np.int64(ALL_PAIRS))
             add_tangent_kick_forces(force, pos, m, dpos, dacc)
             kick_drift(pos, vel, acc, dt * kicks[s], dt * drifts[s + 1])
             kick_drift(dpos, dvel, dacc, dt * kicks[s], dt * drifts[s + 1])

@@ -10,6 +10,8 @@ opening kick (first-same-as-last), so a step costs one force evaluation.
 
 from __future__ import annotations
 
+import numpy as np
+
 from orbitsim._jit import jit, jit_inline
 from orbitsim.chaos.step import megno_after_step
 from orbitsim.events.kernels import watched_run
@@ -118,7 +120,7 @@ def advance_chaos(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, 
     G = force.G
     eps2 = force.eps2
     half_dt = 0.5 * dt
-    tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+    tangent_accelerations(pos, m, G, eps2, dpos, dacc, np.int64(ALL_PAIRS))
     add_tangent_kick_forces(force, pos, m, dpos, dacc)
     while n_done < n_to:
         kick(vel, acc, half_dt)
@@ -127,7 +129,7 @@ def advance_chaos(pos, vel, acc, m, force, dt, work, t0, n_done, n_to, tangent, 
         drift(dpos, dvel, dt)
         newtonian_accelerations(force, pos, m, acc)
         add_kick_forces(force, pos, m, acc)
-        tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+        tangent_accelerations(pos, m, G, eps2, dpos, dacc, np.int64(ALL_PAIRS))
         add_tangent_kick_forces(force, pos, m, dpos, dacc)
         kick(vel, acc, half_dt)
         kick(dvel, dacc, half_dt)

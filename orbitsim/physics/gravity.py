@@ -142,7 +142,12 @@ def _accumulate_rows(x, y, z, m, eps2, i_start, i_stop, ax, ay, az):
     incomplete and the caller discards the call (:func:`orbitsim.stopping.run_interruptible`).
     """
     n = x.shape[0]
-    i = i_start
+    # Callers pass ``i_start`` as a run-time int64 (``bounds[b]``, ``np.int64(0)``), never a literal 0:
+    # Numba compiles a callee once per literal, and this loop compiled twice in every run with
+    # N > SMALL_N_MAX (0.4 s of CPU). The clamp (a no-op: starts are >= 0) tells LLVM that every row
+    # index is non-negative, as the literal did: without it the one-block sum ran 1-3% slower at
+    # N = 50-256 (benchmarks/README.md, "One compile of the row loop").
+    i = max(i_start, 0)
     while i + 1 < i_stop:
         if stop_requested():
             return
@@ -272,7 +277,7 @@ def accelerations_serial(pos, m, G, eps2, acc, slabs, bounds):
         return
     if blocks == 1:
         acc[:, :] = 0.0
-        _accumulate_rows(pos[0], pos[1], pos[2], m, eps2, 0, pos.shape[1], acc[0], acc[1], acc[2])
+        _accumulate_rows(pos[0], pos[1], pos[2], m, eps2, np.int64(0), pos.shape[1], acc[0], acc[1], acc[2])
         _scale(acc, G)
         return
     for b in range(blocks):

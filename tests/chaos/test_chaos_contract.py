@@ -146,7 +146,9 @@ def test_wisdom_holman_contract_is_the_kernel_compared_with_rebound() -> None:
     dt = P * 0.07
     d = np.concatenate(random_initial_variation(3, 0)).T
     result = chaos_run(m, x, v, integrator="wisdom_holman", dt=dt, steps=1000, every=1000, variation=d)
-    pos, vel = np.array(x.T), np.array(v.T)
+    # C-ordered as a run's arrays (np.array(x.T) keeps x.T's F order): an F-ordered pair compiles tangent_run
+    # a second time (15 CPU-s of the suite) for the same kernel.
+    pos, vel = np.ascontiguousarray(x.T), np.ascontiguousarray(v.T)
     dpos, dvel = np.ascontiguousarray(d[:, :3].T), np.ascontiguousarray(d[:, 3:].T)
     _, _, _, sums, _ = tangent_run(pos, vel, dpos, dvel, m, make_force(1.0, 0.0, 3), dt, jacobi_weights(m),
                                    np.cumsum(m), np.zeros((TANGENT_SCRATCH_ROWS, 3, 3)), megno_start(0.0), 0.0, 0, 1000)

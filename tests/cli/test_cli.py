@@ -259,4 +259,7 @@ def test_progress_bar_waits_a_second_then_draws(monkeypatch: pytest.MonkeyPatch,
 def test_no_progress_bar_when_stderr_is_not_a_terminal(tiny: Path, tmp_path: Path) -> None:
     proc = subprocess.run([sys.executable, "-m", "orbitsim", "run", str(tiny), "-o", str(tmp_path / "p.h5"),
                            "--steps", "20000"], capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0 and proc.stderr == "" and "tiny: complete" in proc.stdout
+    # From an empty cache (a fresh clone, or the worker that reaches this first) the run also says, once,
+    # that it compiles: that line is not a progress bar, and nothing else may be on stderr.
+    compiling = "orbitsim: compiling kernels for verlet (first run only)\n"
+    assert proc.returncode == 0 and proc.stderr in ("", compiling) and "tiny: complete" in proc.stdout

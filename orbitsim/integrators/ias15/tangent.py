@@ -157,7 +157,7 @@ def _write_megno(s, state):
 @jit
 def refresh_tangent(pos, m, force, tan):
     """dacc = J(pos) dpos (before the first step, or after the tangent state was set from outside)."""
-    tangent_accelerations(pos, m, force.G, force.eps2, tan.dpos, tan.dacc, ALL_PAIRS)
+    tangent_accelerations(pos, m, force.G, force.eps2, tan.dpos, tan.dacc, np.int64(ALL_PAIRS))
     add_tangent_kick_forces(force, pos, m, tan.dpos, tan.dacc)  # nothing without forces
 
 
@@ -234,7 +234,7 @@ def step_try_tangent(pos, vel, acc, m, force, work, tan, initial_t):
             _predict_velocities(dvf, tv0, ta0, tb, tcsv, dt, hn)
             newtonian_accelerations(force, pos, m, at)
             add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn)  # nothing without forces
-            tangent_accelerations(pos, m, G, eps2, dpos, tat, ALL_PAIRS)
+            tangent_accelerations(pos, m, G, eps2, dpos, tat, np.int64(ALL_PAIRS))
             add_tangent_kick_forces(force, pos, m, dpos, tat)
             megno_sum += W[n] * (t_node - initial_t) * deltad_delta(dpos, dvel, tat)
             # pf and dpf are the corrector's scratch, as in step_try: every path out rewrites them.
@@ -282,7 +282,7 @@ def step_try_tangent(pos, vel, acc, m, force, work, tan, initial_t):
     predict_next(ratio, te, tb, te, tb)
     newtonian_accelerations(force, pos, m, acc)
     add_forces(force, pos, vel, m, acc)
-    tangent_accelerations(pos, m, G, eps2, dpos, dacc, ALL_PAIRS)
+    tangent_accelerations(pos, m, G, eps2, dpos, dacc, np.int64(ALL_PAIRS))
     add_tangent_kick_forces(force, pos, m, dpos, dacc)
     counts[COUNT_FORCE_EVALS] += 1
     counts[COUNT_ACCEPTED] += 1

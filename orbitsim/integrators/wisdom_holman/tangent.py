@@ -227,9 +227,9 @@ def interaction_kick_tangent(jpos, jvel, djpos, djvel, m, G, eps2, h, weights, m
     :func:`orbitsim.forces.tangent.add_tangent_kick_forces`), their Jacobi transform, then, for
     i >= 2, the derivative of the Jacobi term ``G M_i r'_i / |r'_i|^3`` (added first, as REBOUND).
     """
-    interaction_kick(jpos, jvel, m, G, eps2, h, JACOBI, weights, mu, ipos, acc, force)
+    interaction_kick(jpos, jvel, m, G, eps2, h, np.int64(JACOBI), weights, mu, ipos, acc, force)
     jacobi_to_inertial(djpos, weights, dipos)
-    tangent_accelerations(ipos, m, G, eps2, dipos, dacc, SKIP_PAIR_0_1)
+    tangent_accelerations(ipos, m, G, eps2, dipos, dacc, np.int64(SKIP_PAIR_0_1))
     add_tangent_kick_forces(force, ipos, m, dipos, dacc)
     # to Jacobi, in place: columns 1.. are the same arithmetic as the bodies' kick; column 0 (the centre of
     # mass) is not read, and megno_after_step rewrites the whole array
