@@ -21,6 +21,10 @@ Every jitted function in orbitsim is decorated with :func:`jit` (exact IEEE arit
 * ``error_model="numpy"``: division by zero gives inf/nan instead of raising, which lets the
   kernels skip Python's zero checks; non-finite states are caught by the divergence check.
 * ``nogil=True``: lets callers run kernels from threads (Dask workers, progress bars).
+* ``no_cfunc_wrapper=True``: no C-callable wrapper beside each function. Numba builds one for
+  first-class function values (a jitted function passed as a ``types.FunctionType``), which
+  orbitsim never uses; each cost a first run compile time (0.6-0.7 CPU-s of ``mercury_gr``'s).
+* Always-inlined overloads go through :func:`overload_inline` (the same flags, see there).
 * ``boundscheck=False`` (the default) in production; tests may run with ``NUMBA_DISABLE_JIT=1``.
 * :func:`stop_requested`: the flag the O(N^2) kernels look at between row blocks, so that a stop
   (Ctrl-C, SIGTERM) reaches a kernel that runs for minutes (see its docstring).
@@ -103,7 +107,7 @@ from numba.extending import intrinsic, overload  # noqa: E402
 if numba.config.CACHE_DIR != os.environ["NUMBA_CACHE_DIR"]:
     numba.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
-_COMMON: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy"}
+_COMMON: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True}
 
 #: Flags allowed in the force sum only: reassociation vectorises the j-reduction, contraction
 #: fuses its multiply-adds (7% more pairs/s at N = 2048-8192, 12% less per 5-body evaluation).
@@ -124,6 +128,28 @@ def jit_inline(func: F) -> F:
     benchmarks/README.md). Never for a force loop: inlined into a caller it stopped vectorising.
     """
     return numba.njit(fastmath=False, inline="always", **_COMMON)(func)
+
+
+#: The flags of :func:`jit` for an overload's implementation (Numba's overloads default to no CPython
+#: wrapper, a flag that :func:`jit` functions do not set: see :func:`overload_inline`).
+_OVERLOAD_OPTIONS: dict[str, Any] = {key: _COMMON[key] for key in ("nogil", "error_model", "no_cfunc_wrapper")}
+_OVERLOAD_OPTIONS["no_cpython_wrapper"] = False
+
+
+def overload_inline(func: Callable[..., Any]) -> Callable[[F], F]:
+    """``numba.extending.overload(func, inline="always")``, its implementations compiled with the flags
+    of :func:`jit`.
+
+    Numba types an always-inlined overload's implementation by compiling it on its own (machine code
+    that never runs: the caller inlines the IR and lowers it with its own flags), and keeps that
+    compilation per argument types *and* the flags of the compilation that asked. Overloads default to
+    other flags than :func:`jit` (no CPython wrapper, ``nogil=False``, ``error_model="python"``), so an
+    overload asked for from inside another overload's compilation (the force walk's nested records)
+    missed the one asked for by a :func:`jit` function and was compiled again: each force overload
+    twice in a first ``mercury_gr`` run. With :func:`jit`'s flags the two requests are one. No machine
+    code that runs changes.
+    """
+    return overload(func, inline="always", jit_options=_OVERLOAD_OPTIONS)
 
 
 def jit_force(func: F) -> F:
@@ -239,7 +265,7 @@ def _load_stop_flag(typingctx):
     return numba.types.boolean(), codegen
 
 
-@overload(stop_requested, inline="always")
+@overload_inline(stop_requested)
 def _stop_requested_jitted():
     return lambda: _load_stop_flag()
 

@@ -176,9 +176,13 @@ def _decorated_by(node: ast.AST, source: Source, wanted: frozenset[str]) -> list
     return [name for d in node.decorator_list if (name := _dotted(d, source.bound) or "") in wanted]
 
 
+#: :mod:`orbitsim._jit`'s wrappers of Numba's extension API (an always-inlined overload with jit's flags).
+JIT_EXTENSIONS = frozenset({"orbitsim._jit.overload_inline"})
+
+
 def _extension(name: str) -> bool:
     parts = name.split(".")
-    return parts[0] == "numba" and parts[-1] in NUMBA_EXTENSIONS
+    return (parts[0] == "numba" and parts[-1] in NUMBA_EXTENSIONS) or name in JIT_EXTENSIONS
 
 
 @dataclass(frozen=True)
@@ -362,6 +366,11 @@ def e(x):
     return lambda x: 0
 
 
+@_jit.overload_inline(abs)
+def g(x):
+    return lambda x: units.PC
+
+
 def f():
     return numba.cuda.jit
 '''
@@ -384,8 +393,9 @@ def test_the_detectors_see_each_kind_of_breach(tmp_path: Path) -> None:
     for name in ("numba.njit", "numba.vectorize", "numba.cuda.jit"):
         assert name in compilers, compilers
     kernels = kernels_of(source, jit_decorators())
-    assert len(kernels.jitted) == 2 and len(kernels.extensions) == 1  # @jit c, _jit.jit_force(_d); @overload e
-    assert {"orbitsim.units.G_SI", "orbitsim.units.AU", "orbitsim.units.YEAR"} <= set(kernels.reaches)
+    assert len(kernels.jitted) == 2 and len(kernels.extensions) == 2  # @jit c, _jit.jit_force(_d); e and g
+    assert {"orbitsim.units.G_SI", "orbitsim.units.AU", "orbitsim.units.YEAR", "orbitsim.units.PC"} <= set(
+        kernels.reaches)
     assert len(overloads_not_inlined(source)) == 1
     missing = "\n".join(uncovered_kernel_modules(package, ("_jit.py",), jit_decorators()))
     assert "orbitsim.kernels.fake defines compiled code" in missing and "module orbitsim.units" in missing

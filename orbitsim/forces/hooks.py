@@ -38,8 +38,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import types
-from numba.extending import overload
 
+from orbitsim._jit import overload_inline
 from orbitsim.physics.force_context import newtonian_accelerations
 
 if TYPE_CHECKING:
@@ -136,7 +136,7 @@ def gravity_only(force):
     raise NotImplementedError("called from jitted code only")
 
 
-@overload(add_forces, inline="always")
+@overload_inline(add_forces)
 def _add_forces(force, pos, vel, m, acc):
     if _terms(force) is None:
         return lambda force, pos, vel, m, acc: None
@@ -149,7 +149,7 @@ def _add_forces(force, pos, vel, m, acc):
     return impl
 
 
-@overload(add_kick_forces, inline="always")
+@overload_inline(add_kick_forces)
 def _add_kick_forces(force, pos, m, acc):
     if _terms(force) is None:
         return lambda force, pos, m, acc: None
@@ -158,7 +158,7 @@ def _add_kick_forces(force, pos, m, acc):
     return lambda force, pos, m, acc: add_position_forces_of(force.forces.terms, pos, m, force.G, acc)
 
 
-@overload(velocity_operator, inline="always")
+@overload_inline(velocity_operator)
 def _velocity_operator(force, pos, vel, m, h):
     if not _velocity_dependent(force):
         return lambda force, pos, vel, m, h: None
@@ -168,14 +168,14 @@ def _velocity_operator(force, pos, vel, m, h):
                                                                force.forces.scratch)
 
 
-@overload(has_velocity_operator, inline="always")
+@overload_inline(has_velocity_operator)
 def _has_velocity_operator(force):
     if _velocity_dependent(force):
         return lambda force: True
     return lambda force: False
 
 
-@overload(add_node_forces, inline="always")
+@overload_inline(add_node_forces)
 def _add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn):
     if _terms(force) is None:
         return lambda force, pos, m, at, b, csv, v0, a0, dt, hn: None
@@ -200,7 +200,7 @@ def _add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn):
     return impl
 
 
-@overload(refresh_accelerations, inline="always")
+@overload_inline(refresh_accelerations)
 def _refresh_accelerations(force, pos, vel, m, acc, derivative):
     if _terms(force) is None:
         return lambda force, pos, vel, m, acc, derivative: None
@@ -215,7 +215,7 @@ def _refresh_accelerations(force, pos, vel, m, acc, derivative):
     return impl
 
 
-@overload(record_force_energy, inline="always")
+@overload_inline(record_force_energy)
 def _record_force_energy(force, pos, vel, m, scalars, r):
     if _terms(force) is None:
         return lambda force, pos, vel, m, scalars, r: None
@@ -226,7 +226,7 @@ def _record_force_energy(force, pos, vel, m, scalars, r):
     return impl
 
 
-@overload(gravity_only, inline="always")
+@overload_inline(gravity_only)
 def _gravity_only(force):
     if _terms(force) is None:
         return lambda force: force

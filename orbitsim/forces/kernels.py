@@ -27,9 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import types
-from numba.extending import overload
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit, jit_inline, overload_inline
 from orbitsim.forces.gr import (
     GR_WORK_ROWS,
     MAX_ITERATIONS,
@@ -120,7 +119,7 @@ def _midpoint_term(term, pos, vel, m, G, h, scratch):
     raise NotImplementedError("called from jitted code only")
 
 
-@overload(_position_term, inline="always")
+@overload_inline(_position_term)
 def _ol_position_term(term, pos, m, G, acc):
     kind = _record(term)
     if kind is GRPotentialTerm:
@@ -131,7 +130,7 @@ def _ol_position_term(term, pos, m, G, acc):
     return lambda term, pos, m, G, acc: None
 
 
-@overload(_velocity_term, inline="always")
+@overload_inline(_velocity_term)
 def _ol_velocity_term(term, pos, vel, m, G, com, acc, work):
     kind = _record(term)
     if kind is GRTerm:
@@ -145,14 +144,14 @@ def _ol_velocity_term(term, pos, vel, m, G, com, acc, work):
     return lambda term, pos, vel, m, G, com, acc, work: None
 
 
-@overload(_prepare_term, inline="always")
+@overload_inline(_prepare_term)
 def _ol_prepare_term(term, pos, m, G, work):
     if _record(term) is GRTerm:
         return lambda term, pos, m, G, work: gr_prepare(pos, m, G, term.source, work)
     return lambda term, pos, m, G, work: None
 
 
-@overload(_prepared_velocity_term, inline="always")
+@overload_inline(_prepared_velocity_term)
 def _ol_prepared_velocity_term(term, pos, vel, m, G, com, acc, work):
     if _record(term) is GRTerm:
         return lambda term, pos, vel, m, G, com, acc, work: gr_accelerations_prepared(vel, m, G, term.source, term.c,
@@ -160,14 +159,14 @@ def _ol_prepared_velocity_term(term, pos, vel, m, G, com, acc, work):
     return lambda term, pos, vel, m, G, com, acc, work: _velocity_term(term, pos, vel, m, G, com, acc, work)
 
 
-@overload(_com_for, inline="always")
+@overload_inline(_com_for)
 def _ol_com_for(term, pos, vel, m):
     if _record(term) in (GRFullTerm, MigrationTerm):
         return lambda term, pos, vel, m: centre_of_mass(pos, vel, m)
     return lambda term, pos, vel, m: None
 
 
-@overload(_derivative_term, inline="always")
+@overload_inline(_derivative_term)
 def _ol_derivative_term(term, pos, vel, m, G, acc, scratch):
     if _record(term) not in (GRTerm, GRFullTerm, MigrationTerm):
         return lambda term, pos, vel, m, G, acc, scratch: None
@@ -179,7 +178,7 @@ def _ol_derivative_term(term, pos, vel, m, G, acc, scratch):
     return impl
 
 
-@overload(_term_energy, inline="always")
+@overload_inline(_term_energy)
 def _ol_term_energy(term, pos, vel, m, G, e):
     kind = _record(term)
     if kind is GRPotentialTerm:
@@ -194,7 +193,7 @@ def _ol_term_energy(term, pos, vel, m, G, e):
     return lambda term, pos, vel, m, G, e: e
 
 
-@overload(_midpoint_term, inline="always")
+@overload_inline(_midpoint_term)
 def _ol_midpoint_term(term, pos, vel, m, G, h, scratch):
     if _record(term) in (GRTerm, GRFullTerm, MigrationTerm):
         return lambda term, pos, vel, m, G, h, scratch: _implicit_midpoint(term, pos, vel, m, G, h, scratch)
@@ -223,7 +222,7 @@ def force_energy_of(terms, pos, vel, m, G, e):
     raise NotImplementedError("called from jitted code only")
 
 
-@overload(add_position_forces_of, inline="always")
+@overload_inline(add_position_forces_of)
 def _ol_add_position_forces_of(terms, pos, m, G, acc):
     if len(terms) == 0:
         return lambda terms, pos, m, G, acc: None
@@ -234,7 +233,7 @@ def _ol_add_position_forces_of(terms, pos, m, G, acc):
     return impl
 
 
-@overload(add_velocity_forces_of, inline="always")
+@overload_inline(add_velocity_forces_of)
 def _ol_add_velocity_forces_of(terms, pos, vel, m, G, acc, scratch):
     if len(terms) == 0:
         return lambda terms, pos, vel, m, G, acc, scratch: None
@@ -245,7 +244,7 @@ def _ol_add_velocity_forces_of(terms, pos, vel, m, G, acc, scratch):
     return impl
 
 
-@overload(velocity_operator_of, inline="always")
+@overload_inline(velocity_operator_of)
 def _ol_velocity_operator_of(terms, pos, vel, m, G, h, scratch):
     if len(terms) == 0:
         return lambda terms, pos, vel, m, G, h, scratch: None
@@ -256,7 +255,7 @@ def _ol_velocity_operator_of(terms, pos, vel, m, G, h, scratch):
     return impl
 
 
-@overload(force_energy_of, inline="always")
+@overload_inline(force_energy_of)
 def _ol_force_energy_of(terms, pos, vel, m, G, e):
     if len(terms) == 0:
         return lambda terms, pos, vel, m, G, e: e

@@ -23,9 +23,8 @@ variational run never silently uses Newtonian variations.
 from __future__ import annotations
 
 from numba import errors
-from numba.extending import overload
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, overload_inline
 from orbitsim.forces.hooks import _terms
 
 __all__ = ["add_tangent_forces", "add_tangent_forces_of", "add_tangent_kick_forces"]
@@ -47,7 +46,7 @@ def _tangent_term(term, pos, m, G, dpos, dacc):
     raise NotImplementedError("called from jitted code only")
 
 
-@overload(_tangent_term, inline="always")
+@overload_inline(_tangent_term)
 def _ol_tangent_term(term, pos, m, G, dpos, dacc):
     # lazy: the force modules load only when a forced variational step is typed
     from orbitsim.forces.gr import gr_potential_tangent  # noqa: PLC0415 -- lazy: off runs without forces
@@ -71,7 +70,7 @@ def _ol_tangent_term(term, pos, m, G, dpos, dacc):
     raise errors.TypingError(f"orbitsim: the variational equations of force {name} are not built")
 
 
-@overload(add_tangent_forces_of, inline="always")
+@overload_inline(add_tangent_forces_of)
 def _ol_add_tangent_forces_of(terms, pos, m, G, dpos, dacc):
     if len(terms) == 0:
         return lambda terms, pos, m, G, dpos, dacc: None
@@ -82,7 +81,7 @@ def _ol_add_tangent_forces_of(terms, pos, m, G, dpos, dacc):
     return impl
 
 
-@overload(add_tangent_kick_forces, inline="always")
+@overload_inline(add_tangent_kick_forces)
 def _add_tangent_kick_forces(force, pos, m, dpos, dacc):
     if _terms(force) is None:
         return lambda force, pos, m, dpos, dacc: None

@@ -32,9 +32,8 @@ import math
 
 import numpy as np
 from numba import prange
-from numba.extending import overload
 
-from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
+from orbitsim._jit import jit, jit_inline, jit_parallel_exact, overload_inline, stop_requested
 from orbitsim.physics.force_context import AllPairs, Blocks, Rows, kernel_class
 from orbitsim.physics.gravity import SMALL_N_MAX
 
@@ -203,7 +202,7 @@ def potential_of(force, pos, m, rows):
     raise NotImplementedError("called from jitted code only")
 
 
-@overload(potential_of, inline="always")
+@overload_inline(potential_of)
 def _potential_of(force, pos, m, rows):
     kind = kernel_class(force)
     if kind is AllPairs:  # N <= 48 < BUFFERED_POTENTIAL_MIN_N: _potential_serial's first branch

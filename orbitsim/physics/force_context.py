@@ -28,9 +28,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 from numba import types
-from numba.extending import overload
 
-from orbitsim._jit import jit, stop_requested
+from orbitsim._jit import jit, overload_inline, stop_requested
 from orbitsim.physics.gravity import (
     SMALL_N_MAX,
     accelerations_blocks,
@@ -99,7 +98,7 @@ def newtonian_accelerations(force, pos, m, acc):
     raise NotImplementedError("called from jitted code only")
 
 
-@overload(newtonian_accelerations, inline="always")
+@overload_inline(newtonian_accelerations)
 def _newtonian_accelerations(force, pos, m, acc):
     kind = kernel_class(force)
     if kind is AllPairs:

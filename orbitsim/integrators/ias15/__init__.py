@@ -186,10 +186,15 @@ def failure_message(work: tuple[Any, ...]) -> str | None:
     return None
 
 
-@jit
+@jit_inline
 def _take_step(pos, vel, acc, m, force, work):
     """One accepted step (rejected tries retried, as REBOUND's ``reb_integrator_ias15_step``).
-    Returns False, with the status in ``work``, when the clock cannot move or the state is lost."""
+    Returns False, with the status in ``work``, when the clock cannot move or the state is lost.
+
+    Inlined, as are :func:`_watched_step` and :func:`integrate_to`: Numba links a callee's machine
+    code into each caller and LLVM optimises and compiles the whole again, so every call layer above
+    :func:`~orbitsim.integrators.ias15.core.step_try` compiled the step (with a run's forces) once
+    more, ~1 CPU-s each in a first run. Three layers fewer: run, advance_grid and step_try remain."""
     clock, counts = work.clock, work.counts
     while True:
         dt = clock[CLOCK_DT]
@@ -210,7 +215,7 @@ def _take_step(pos, vel, acc, m, force, work):
 REACHED, FAILED, ACT = 0, 1, 2
 
 
-@jit
+@jit_inline
 def _watched_step(pos, vel, acc, m, force, work, watch):
     """:func:`_take_step`, then the events check on the step IAS15 took. The check's step number
     is IAS15's own (accepted steps), and its clock is set so that step n ends at the state's time."""
@@ -227,7 +232,7 @@ def _watched_step(pos, vel, acc, m, force, work, watch):
     return REACHED
 
 
-@jit
+@jit_inline
 def integrate_to(pos, vel, acc, m, force, work, t_target, watch):
     """Adaptive steps up to ``t_target`` exactly (REBOUND's ``exact_finish_time = 1`` loop of one
     ``integrate`` call: the step that would overshoot is shortened to end on the target, and the
