@@ -32,9 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import types
-from numba.extending import overload
 
-from orbitsim._jit import jit
+from orbitsim._jit import jit, overload_inline
 from orbitsim.forces.hooks import gravity_only
 from orbitsim.integrators.wisdom_holman.operators import (
     JACOBI,
@@ -130,7 +129,7 @@ def apply_corrector_if_any(jpos, jvel, m, force, dt, inv, work):
     raise NotImplementedError("called from jitted code only")
 
 
-@overload(apply_corrector_if_any, inline="always")
+@overload_inline(apply_corrector_if_any)
 def _apply_corrector_if_any(jpos, jvel, m, force, dt, inv, work):
     if isinstance(work.types[work.fields.index("stage_a")], types.NoneType):
         return lambda jpos, jvel, m, force, dt, inv, work: (np.int64(KEPLER_OK), np.int64(0))
