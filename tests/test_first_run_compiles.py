@@ -54,17 +54,23 @@ print(json.dumps({"exit": result.exit_code, "output": result.output, "compiled":
 """
 
 
-@pytest.mark.slow
-def test_a_cold_wisdom_holman_run_with_a_corrector_compiles_each_kernel_once(tmp_path: Path) -> None:
-    (tmp_path / "wh.yaml").write_text(WH_CORRECTED, encoding="utf-8")
+def cold_compiles(cwd: Path, *args: str) -> dict[str, list[str]]:
+    """Run ``orbitsim ARGS`` in ``cwd`` from an empty cache, in its own process (the cache directory
+    is fixed at import); the orbitsim functions it compiled, each with its compilations' argument types."""
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
-    env["ORBITSIM_CACHE_DIR"] = str(tmp_path / "cache")  # empty: every kernel is compiled here
-    ran = subprocess.run([sys.executable, "-c", PROBE, "run", "wh.yaml", "-q", "-o", "out.h5"], cwd=tmp_path,
-                         capture_output=True, text=True, timeout=600, env=env)
+    env["ORBITSIM_CACHE_DIR"] = str(cwd / "cache")  # empty: every kernel is compiled here
+    ran = subprocess.run([sys.executable, "-c", PROBE, *args], cwd=cwd, capture_output=True, text=True, timeout=600,
+                         env=env)
     assert ran.returncode == 0, ran.stderr
     report = json.loads(ran.stdout.splitlines()[-1])
     assert report["exit"] == 0, report["output"]
-    compiled = report["compiled"]
+    return report["compiled"]
+
+
+@pytest.mark.slow
+def test_a_cold_wisdom_holman_run_with_a_corrector_compiles_each_kernel_once(tmp_path: Path) -> None:
+    (tmp_path / "wh.yaml").write_text(WH_CORRECTED, encoding="utf-8")
+    compiled = cold_compiles(tmp_path, "run", "wh.yaml", "-q", "-o", "out.h5")
     # The run did compile (an empty cache), the corrector's kick among it.
     assert "orbitsim.integrators.wisdom_holman.correctors.corrector_stage" in compiled, sorted(compiled)
     twice = {name: sigs for name, sigs in compiled.items() if len(sigs) > 1}
@@ -76,14 +82,7 @@ def test_a_cold_wisdom_holman_run_without_a_corrector_compiles_none(tmp_path: Pa
     """Without a corrector the stage tables are None, and the run compiles no corrector stage (5-8 s
     of a first run when they were empty arrays behind a run-time branch)."""
     (tmp_path / "wh.yaml").write_text(WH_CORRECTED.replace("corrector: 11", "corrector: 0"), encoding="utf-8")
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
-    env["ORBITSIM_CACHE_DIR"] = str(tmp_path / "cache")
-    ran = subprocess.run([sys.executable, "-c", PROBE, "run", "wh.yaml", "-q", "-o", "out.h5"], cwd=tmp_path,
-                         capture_output=True, text=True, timeout=600, env=env)
-    assert ran.returncode == 0, ran.stderr
-    report = json.loads(ran.stdout.splitlines()[-1])
-    assert report["exit"] == 0, report["output"]
-    compiled = report["compiled"]
+    compiled = cold_compiles(tmp_path, "run", "wh.yaml", "-q", "-o", "out.h5")
     assert "orbitsim.integrators.wisdom_holman.run" in compiled, sorted(compiled)
     # the overload's choice, a lambda returning (KEPLER_OK, 0), is all that is compiled of the module
     correctors = sorted(name for name in compiled if ".correctors." in name and "<lambda>" not in name)
@@ -113,14 +112,7 @@ def test_a_cold_run_of_many_bodies_compiles_its_own_force_path_and_no_step_check
     """A 10-step run from an empty cache looks at its states without compiling the step check (a
     second of a 6 s first run), and compiles the force kernel and potential of its N's context alone,
     not the other contexts' beside them (one to two seconds more); and still each kernel once."""
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
-    env["ORBITSIM_CACHE_DIR"] = str(tmp_path / "cache")
-    ran = subprocess.run([sys.executable, "-c", PROBE, "run", scenario, "--steps", "10", "-q", "-o", "out.h5"],
-                         cwd=tmp_path, capture_output=True, text=True, timeout=600, env=env)
-    assert ran.returncode == 0, ran.stderr
-    report = json.loads(ran.stdout.splitlines()[-1])
-    assert report["exit"] == 0, report["output"]
-    compiled = report["compiled"]
+    compiled = cold_compiles(tmp_path, "run", scenario, "--steps", "10", "-q", "-o", "out.h5")
     used, unused = FORCE_PATHS[scenario]
     assert used in compiled, sorted(compiled)
     unused = unused | {"orbitsim.events.timescales.orbit_timescales"}
