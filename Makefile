@@ -25,6 +25,9 @@ demo: $(STAMP)
 # and renamed into place, so a kernel compiled by two workers at once is stored whole. Each test file
 # goes to one worker (--dist loadfile): a file's tests use the same kernels, and split over two
 # workers with an empty cache both compiled them (16% more CPU on the forces + WH files, measured).
+# A case whose kernels are a family of their own (tens of seconds to compile on an empty cache: the map's
+# lanes, TRACE with events, IAS15 with forces, each further scheme of a cross-product) is marked slow and
+# runs in `make test-slow` (tests/suite_split.py); CI runs both.
 TEST_WORKERS ?= auto
 
 test: $(STAMP)

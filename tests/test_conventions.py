@@ -38,6 +38,8 @@ import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
+import pytest
+
 
 def _repo_root() -> Path:
     """The checkout's root (the folder of ``pyproject.toml``), wherever this file is moved in tests/."""
@@ -463,6 +465,7 @@ print(json.dumps({"schemes": len(INTEGRATORS), **counts, "hits": hits, "misses":
 '''
 
 
+@pytest.mark.slow  # compiles and then loads a run of every kind in fresh processes (~40 s cold)
 def test_a_second_process_compiles_nothing() -> None:
     """What a run compiles is stored, and a second process loads all of it: no closure, no
     dispatcher passed from Python, no uncached overload compiles anew on every start."""

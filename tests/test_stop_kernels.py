@@ -181,6 +181,7 @@ def _scenario(tmp_path, steps: int):
     return load_scenario(str(path))
 
 
+@pytest.mark.slow  # a long call of every kind of loop, stopped (~17 s cold)
 def test_sigint_inside_a_long_call_keeps_the_last_whole_step_and_resumes_bit_for_bit(monkeypatch, tmp_path) -> None:
     """The runner's own SIGINT handling: the Stopper stops at once while the main thread waits on
     kernels, the call in flight is undone (its samples are not written), and the trace keeps the

@@ -22,6 +22,7 @@ import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from suite_split import fast_only
 
 from orbitsim.batch.cluster import ClusterPlan, open_client
 from orbitsim.batch.driver import SweepInterrupted, run_sweep, trace_path_for
@@ -240,7 +241,7 @@ def process_group_alive(pgid: int) -> bool:
     return False
 
 
-@pytest.mark.parametrize("presses", [1, 2])
+@pytest.mark.parametrize("presses", fast_only([1, 2], [1]))  # a sweep interrupted twice: 12 s, make test-slow
 def test_ctrl_c_is_one_line_exit_130_and_a_summary_of_what_really_finished(tmp_path, presses):
     # Ctrl-C in a terminal sends SIGINT to the whole foreground process group: the driver and the
     # local cluster's workers alike. Eight equal runs of ~0.5 s (quiet machine) to a few seconds

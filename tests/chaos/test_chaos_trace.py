@@ -205,6 +205,7 @@ def test_run_from_with_another_scheme_continues_the_tangent_vector(tmp_path: Pat
         assert f["checkpoint/chaos/megno_sums"][6] == 0.0 and f["megno"].shape == (PAIR["steps"] // 500 + 5,)
 
 
+@pytest.mark.slow  # compiles a chaos run with GR's derivative (~25 s cold)
 def test_a_force_whose_derivative_is_built_enters_the_scenario_run(tmp_path: Path) -> None:
     from orbitsim.chaos.state import forces_with_derivatives
 

@@ -75,6 +75,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return first, reference
 
 
+@pytest.mark.slow  # kills a continuation that switched schemes (~11 s)
 def test_a_switched_continuation_survives_sigkill_and_resumes_bit_for_bit(runs: tuple[Path, Path],
                                                                           tmp_path: Path) -> None:
     first, reference = runs

@@ -67,11 +67,12 @@ def test_plummer_16k_keeps_the_trace_small() -> None:
     assert s.n_bodies == 16384 and not s.record_positions and s.steps <= 10
 
 
-#: j2_satellite is the one bundled scenario whose loop (IAS15 with harmonics, 25-40 s to compile
-#: on a cold cache) nothing else in `make test` compiles; it runs a few steps in `make test-slow`,
-#: beside its precession test (tests/forces/test_forces_acceptance.py). Harmonics stay in a
-#: default run through the leapfrog cases of tests/forces/.
-SLOW_TO_COMPILE = {"j2_satellite"}
+#: Bundled scenarios whose loop is a kernel family of its own, 10-45 s to compile on a cold cache (TRACE
+#: with events, IAS15 or Wisdom-Holman with GR or harmonics, Wisdom-Holman's corrector, a 16k-body
+#: Plummer sphere): they run a few steps in `make test-slow`, beside their full runs. `make test` runs
+#: every other bundled scenario, which covers every scheme; forces stay in it through tests/forces/.
+SLOW_TO_COMPILE = {"j2_satellite", "many_encounters", "mercury_gr", "mercury_gr_planets", "resonance_capture",
+                   "solar_system_wh", "comet", "plummer_16k"}
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_TO_COMPILE else n

@@ -39,6 +39,7 @@ def _giants(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return masses, pos, vel
 
 
+@pytest.mark.slow  # compiles the Wisdom-Holman ensemble kernel beside a lone run (~40 s cold)
 def test_each_system_gets_the_bits_of_a_single_wisdom_holman_run():
     masses, pos, vel = _giants(3)
     result = run_ensemble(masses, pos, vel, G=1.0, dt=DT, n_steps=N_STEPS)
@@ -55,6 +56,7 @@ def test_each_system_gets_the_bits_of_a_single_wisdom_holman_run():
                                                                    rel=1e-6, abs=1e-15)  # two energy sums
 
 
+@pytest.mark.slow  # the plain and the variational Wisdom-Holman ensembles compile for ~45 s cold
 @pytest.mark.parametrize("variational", [False, True])
 def test_bits_do_not_depend_on_chunking_or_threads(variational):
     from orbitsim.chaos.megno import random_initial_variation

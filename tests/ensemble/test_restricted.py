@@ -12,6 +12,10 @@ from orbitsim.ensemble.restricted import BLOCK_STEPS, restricted_applies
 from orbitsim.ensemble.status import COLLIDED, COMPLETE, ESCAPED, MEGNO
 from orbitsim.scenario import load_scenario
 
+# `make test-slow` only: the restricted Wisdom-Holman MEGNO kernel and its whole-system reference compile
+# for ~75 s cold.
+pytestmark = pytest.mark.slow
+
 DT = 3.1415  # half a year, the bundled map's step
 N_STEPS = BLOCK_STEPS + 300  # two blocks, the second one short
 
@@ -33,6 +37,7 @@ def _variation(k: int, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     return np.tile(dpos * scale, (k, 1, 1)), np.tile(dvel * scale, (k, 1, 1))
 
 
+@pytest.mark.slow  # compiles the whole-system and the restricted Wisdom-Holman MEGNO kernels (~1 min cold)
 @pytest.mark.parametrize("case", ["plain", "escapes_and_collisions", "rescaled"])
 def test_shared_massive_bodies_give_the_bits_of_the_whole_system_kernel(case):
     k = 24

@@ -25,6 +25,9 @@ from orbitsim.integrators.wisdom_holman.tangent import TANGENT_SCRATCH_ROWS
 from orbitsim.physics.force_context import make_force
 from orbitsim.physics.kepler_solver import setup_short
 
+# `make test-slow` only: the lanes kernels and their scalar reference compile for ~80 s cold.
+pytestmark = pytest.mark.slow
+
 DT = 0.5
 N_STEPS = 100
 

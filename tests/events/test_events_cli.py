@@ -200,6 +200,7 @@ def assert_events_around(table: dict[str, np.ndarray], step: int) -> None:
     assert (table["step"] < step).any() and (table["step"] > step).any()
 
 
+@pytest.mark.slow  # kills TRACE with events repeatedly (~17 s); make test keeps the Ctrl-C case
 def test_events_survive_sigkill_and_resume_bit_for_bit(kill_reference: tuple[Path, Path, dict[str, np.ndarray]],
                                                       tmp_path: Path) -> None:
     scenario, reference, table = kill_reference

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from forces_helpers import make_forces, rebound_state
+from suite_split import fast_only
 
 from orbitsim.forces.table import GR, GR_FULL, GR_POTENTIAL, HARMONICS, MIGRATION, P_C, P_J2, P_J4, P_R_EQ, P_SPIN
 from orbitsim.simulation import Simulation, SimulationError
@@ -88,7 +89,8 @@ def _energy_errors(chunks) -> np.ndarray:
 SYMPLECTIC = ["semi_implicit_euler", "verlet", "leapfrog", "leapfrog4", "leapfrog6", "leapfrog8", "wisdom_holman"]
 
 
-@pytest.mark.parametrize("integrator", SYMPLECTIC)
+# Each scheme compiles its loop with gr_potential (9-16 s cold): `make test` bounds leapfrog and Wisdom-Holman.
+@pytest.mark.parametrize("integrator", fast_only(SYMPLECTIC, ["leapfrog", "wisdom_holman"]))
 def test_symplectic_energy_with_gr_potential_is_bounded(integrator) -> None:
     steps = 6000  # about 50 orbits of the inner planet at dt = 0.05, where even leapfrog8's error is not round-off
     _, chunks = _run(integrator, _gr_potential(), steps, dt=0.05, targets=np.arange(0, steps + 1, 50))
@@ -111,7 +113,9 @@ def test_symplectic_energy_with_gr_potential_is_bounded(integrator) -> None:
     assert sim.total_energy() != newtonian
 
 
-@pytest.mark.parametrize("integrator", ["verlet", "leapfrog", "leapfrog4", "wisdom_holman"])
+# As above, with gr as an operator: `make test` keeps leapfrog and leapfrog4.
+@pytest.mark.parametrize("integrator", fast_only(["verlet", "leapfrog", "leapfrog4", "wisdom_holman"],
+                                                  ["leapfrog", "leapfrog4"]))
 def test_velocity_operator_keeps_the_gr_hamiltonian_bounded(integrator) -> None:
     """gr as REBOUNDx's operator V(dt/2) S(dt) V(dt/2) around a symmetric scheme (Tamayo et al.
     2020): the GR Hamiltonian (Newtonian energy + force_energy) oscillates without drifting."""
@@ -139,7 +143,7 @@ def _final_error(integrator: str, forces, dt: float, t_end: float, reference: np
     ("semi_implicit_euler", 1, GR_POTENTIAL), ("verlet", 2, GR_POTENTIAL), ("leapfrog", 2, GR_POTENTIAL),
     ("leapfrog4", 4, GR_POTENTIAL), ("wisdom_holman", 2, GR_POTENTIAL),
     pytest.param("rk4", 4, GR_POTENTIAL, marks=pytest.mark.slow),
-    ("euler", 1, GR), ("verlet", 2, GR), ("leapfrog", 2, GR), ("rk4", 4, GR),
+    pytest.param("euler", 1, GR, marks=pytest.mark.slow), ("verlet", 2, GR), ("leapfrog", 2, GR), ("rk4", 4, GR),
     pytest.param("rk4", 4, GR_FULL, marks=pytest.mark.slow),
 ])
 def test_convergence_order_with_forces(integrator, order, force_id) -> None:
@@ -155,12 +159,13 @@ def test_convergence_order_with_forces(integrator, order, force_id) -> None:
 
 #: verlet's loop with gr_potential + gr is compiled only by its cases of the two tests below: they run
 #: in `make test-slow`. The one sample loop and the force hooks they test are the same for every
-#: fixed-step scheme, and `make test` keeps them through Wisdom-Holman (fixed step), IAS15
-#: (adaptive) and, here, rk4 (gr_full).
+#: fixed-step scheme, and `make test` keeps them through Wisdom-Holman (fixed step) and, in the
+#: checkpoint test, IAS15 (adaptive); IAS15's and rk4's (gr_full) cut runs each compile a loop of their
+#: own (25-30 s cold) and run in `make test-slow`.
 SHARED_LOOP_SLOW = pytest.param("verlet", marks=pytest.mark.slow)
 
 
-@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", "ias15", "rk4"])
+@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", *fast_only(["ias15", "rk4"], [])])
 def test_forced_runs_same_bits_however_cut(integrator) -> None:
     forces = make_forces(3, [(GR_POTENTIAL, 0, {P_C: C_STRONG}, None),
                              (GR if integrator != "rk4" else GR_FULL, 0 if integrator != "rk4" else -1,
@@ -172,6 +177,8 @@ def test_forced_runs_same_bits_however_cut(integrator) -> None:
         assert np.array_equal(one.pos, other.pos) and np.array_equal(one.vel, other.vel)
 
 
+# Compiles leapfrog with forces for the parallel kernel (~17 s cold); tests/physics/ checks the kernel's threads.
+@pytest.mark.slow
 def test_forced_runs_do_not_depend_on_threads() -> None:
     import numba
 
@@ -195,7 +202,8 @@ def test_forced_runs_do_not_depend_on_threads() -> None:
     assert np.array_equal(states[0][0], states[1][0]) and np.array_equal(states[0][1], states[1][1])
 
 
-@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", "ias15"])
+# IAS15 with forces compiles for ~28 s cold: its resume runs in make test-slow.
+@pytest.mark.parametrize("integrator", [SHARED_LOOP_SLOW, "wisdom_holman", *fast_only(["ias15"], [])])
 def test_checkpoint_resume_with_forces_is_bit_identical(integrator) -> None:
     from orbitsim.checkpoint.state import capture_state, restore_state
 
@@ -276,8 +284,8 @@ TRIO_WITH_FORCES = {
 #: Each scheme's loop with this force set is compiled by no other test, so `make test` keeps one
 #: (Wisdom-Holman); leapfrog and IAS15 run in `make test-slow`. IAS15's resume with forces stays in
 #: `make test` at the Simulation level (test_checkpoint_resume_with_forces_is_bit_identical[ias15]).
-@pytest.mark.parametrize("name", [pytest.param("leapfrog", marks=pytest.mark.slow), "wisdom_holman",
-                                  pytest.param("ias15", marks=pytest.mark.slow)])
+@pytest.mark.slow  # a scenario run with forces, killed and resumed: its loop compiles for ~18 s cold
+@pytest.mark.parametrize("name", ["leapfrog", "wisdom_holman", "ias15"])
 def test_scenario_run_with_forces_resumes_to_the_same_bits(tmp_path, name) -> None:
     """orbitsim run with a forces: list, stopped and resumed from its checkpoint: the same trace as
     one uninterrupted run, with the forces in the trace's attributes."""

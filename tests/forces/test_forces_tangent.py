@@ -10,6 +10,7 @@ import pytest
 import rebound
 from forces_helpers import make_forces
 from numba.core.errors import TypingError
+from suite_split import fast_only
 
 from orbitsim.chaos.megno import random_initial_variation
 from orbitsim.chaos.run import chaos_run
@@ -68,7 +69,8 @@ def _force_acc(pos: np.ndarray, m: np.ndarray, terms: tuple) -> np.ndarray:
     return acc
 
 
-@pytest.mark.parametrize("case", list(DERIVATIVE_CASES))
+# "both" (GR and harmonics in one force set) compiles a derivative of its own (~20 s cold): `make test-slow`.
+@pytest.mark.parametrize("case", fast_only(DERIVATIVE_CASES, [c for c in DERIVATIVE_CASES if c != "both"]))
 def test_each_derivative_is_the_central_difference_of_its_force(case: str) -> None:
     pos, m = _bodies()
     terms = terms_of(*make_forces(4, DERIVATIVE_CASES[case]).arrays)
@@ -202,6 +204,7 @@ def _fd_check(name: str) -> None:
     assert not np.array_equal(plain.positions, tangent.positions)  # the forces acted on the bodies
 
 
+@pytest.mark.slow  # compiles Wisdom-Holman's tangent run with forces (~2 min cold)
 def test_wisdom_holman_variational_run_with_forces_is_the_derivative_of_two_nearby_runs() -> None:
     # Wisdom-Holman kicks the forces (and their derivatives) in its interaction step and in MEGNO's read.
     _fd_check("wisdom_holman")

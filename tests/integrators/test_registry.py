@@ -187,13 +187,20 @@ def test_no_caller_looks_a_hook_up_by_name() -> None:
     assert _HOOK_LOOKUP.search('counters = getattr(self.sim.module, "counters", None)')  # the check can fail
 
 
+#: Schemes whose step, compiled beside their run, is a family of its own (TRACE ~1 min cold, Wisdom-Holman
+#: ~15 s): make test-slow checks their step against their run. make test keeps Wisdom-Holman's in
+#: test_wisdom_holman.py, and TRACE's steps against REBOUND's in test_trace_core.py and test_trace_ias15.py.
+STEP_RUN_SLOW = {"trace", "wisdom_holman"}
+
+
 def _step_run_cases() -> list:
     """Every scheme at N = 3 (all pairs, N <= 48) and at N = 60 (the third-law rows). A scheme's
     step and run compiled for the rows' context are two more specialisations (about 5-40 s on a cold
     cache) that only this test needs, and the rows kernel is the same whatever scheme calls it:
     `make test` runs N = 60 with verlet, `make test-slow` with every other scheme."""
     return [pytest.param(spec, n, id=f"{spec.name}-{n}",
-                         marks=pytest.mark.slow if n == 60 and spec.name != "verlet" else ())
+                         marks=pytest.mark.slow if (n == 60 and spec.name != "verlet") or spec.name in STEP_RUN_SLOW
+                         else ())
             for n in (3, 60) for spec in INTEGRATORS]
 
 
@@ -338,7 +345,9 @@ def test_declared_order_matches_the_issue_table(spec: IntegratorSpec) -> None:
         assert spec.order >= 1  # a scheme the table does not list: at least consistent
 
 
-@pytest.mark.parametrize("spec", INTEGRATORS, ids=SPEC_IDS)
+# TRACE's run compiles for ~30 s cold: make test-slow (tests/integrators/test_trace_core.py runs TRACE in make test).
+@pytest.mark.parametrize("spec", [pytest.param(s, marks=pytest.mark.slow) if s.name == "trace" else s
+                                  for s in INTEGRATORS], ids=SPEC_IDS)
 def test_tiny_run_of_every_integrator(spec: IntegratorSpec) -> None:
     m, x, v = star_and_two_planets()
     dt = 1e-3

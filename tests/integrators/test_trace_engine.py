@@ -143,6 +143,7 @@ PERICENTRE = {
          "v": [0.0, -0.00041847592812364073, 4.557029834761706]}]}
 
 
+@pytest.mark.slow  # TRACE with events through orbitsim run, each pericentre mode its own kernel (~20 s cold)
 @pytest.mark.parametrize("peri_mode", ["full_bs", "full_ias15"])
 def test_pericentre_passages_through_orbitsim_run(tmp_path: Path, peri_mode: str) -> None:
     """REBOUND's bound on its pericentre test, |dE/E| < 1e-4, through the run loop, in both FULL

@@ -188,6 +188,7 @@ def test_damaged_stored_bodies_are_refused(tmp_path: Path, large) -> None:
         prepare_extension(damaged, steps=4, output=tmp_path / "longer.h5")
 
 
+@pytest.mark.slow  # compiles Wisdom-Holman for the row kernels' N (~13 s cold)
 def test_export_of_a_large_wisdom_holman_run_continues_bit_for_bit(tmp_path: Path) -> None:
     """The exported scenario's integrator_state (two (N, 3) arrays) is stored as datasets too, and
     the exported run, stored that way, continues the original bit for bit."""

@@ -275,6 +275,7 @@ def test_what_forced_loops_do_not_combine_yet_is_refused_before_the_run(tmp_path
     assert sorted(tmp_path.iterdir()) == [path]
 
 
+@pytest.mark.slow  # compiles a loop with migration (~13 s cold)
 def test_a_dissipative_run_is_not_called_untrustworthy_for_the_energy_it_removes(tmp_path: Path) -> None:
     # migration removes energy on purpose; the run's note says so, and the |dE/E| > 1% warning,
     # which would blame the step, must not follow it.

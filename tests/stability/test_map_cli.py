@@ -61,6 +61,7 @@ def test_cli_lists_the_indicators_the_plan_computes():
     assert INDICATOR_CHOICES == INDICATORS
 
 
+@pytest.mark.slow  # compiles the Wisdom-Holman lanes kernels with MEGNO (~2 min cold); make test maps with leapfrog
 def test_map_writes_its_file_and_figure_and_info_and_plot_read_them(scenario, tmp_path):
     out = tmp_path / "m"
     code, stdout, stderr = _map([str(scenario), *AXES, "-o", str(out)])
@@ -147,6 +148,7 @@ def test_what_a_kick_drift_ensemble_cannot_honour_is_refused(tmp_path, edit, mes
     assert not (tmp_path / "m").exists()
 
 
+@pytest.mark.slow  # compiles the map's leapfrog ensemble kernels (~100 s cold)
 def test_a_leapfrog_map_records_its_scheme_and_resumes_bit_identically(tmp_path, monkeypatch):
     # leapfrog order 4 (the kernel tests/ensemble/test_kick_drift.py compiles too): a first run finds the
     # disk full at its second chunk, the same command with --resume finishes it, and every grid is the bits
@@ -228,6 +230,7 @@ def test_a_full_disk_is_one_line_and_keeps_the_finished_chunks(scenario, tmp_pat
         assert np.array_equal(a[name], b[name], equal_nan=True), name
 
 
+@pytest.mark.slow  # compiles the map's Wisdom-Holman lanes kernels (~100 s cold)
 def test_a_map_killed_mid_way_is_finished_bit_identically(scenario, tmp_path):
     axes = ["--x", "planet.a=5.8:9.0:4", "--y", "planet.e=0:0.3:4", "--t-end", "4000", "--indicator", "max_e",
             "--quiet", "--threads", "1"]
