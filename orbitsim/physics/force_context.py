@@ -29,7 +29,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import types
 
-from orbitsim._jit import jit, overload_inline, stop_requested
+from orbitsim._jit import overload_inline, stop_requested
 from orbitsim.physics.gravity import (
     SMALL_N_MAX,
     accelerations_blocks,
@@ -116,7 +116,16 @@ def _newtonian_accelerations(force, pos, m, acc):
     return None
 
 
-@jit
-def accelerations_at(force, pos, m, acc):
-    """:func:`newtonian_accelerations`, for Python callers (a run's first accelerations)."""
-    newtonian_accelerations(force, pos, m, acc)
+def accelerations_at(force: ForceContext, pos: np.ndarray, m: np.ndarray, acc: np.ndarray) -> None:
+    """:func:`newtonian_accelerations`, for Python callers (a run's first accelerations): the kernel the
+    context's class names, called directly. The run's loop calls that kernel with the same types, so a
+    first run compiles it once; a jitted wrapper here was one more kernel to compile and link, 0.2-0.4 s
+    of every first run (benchmarks/README.md, "First runs, fourth pass")."""
+    if isinstance(force, AllPairs):
+        all_pairs_accelerations(pos, m, force.G, force.eps2, acc)
+    elif isinstance(force, Rows):
+        accelerations_rows(pos, m, force.G, force.eps2, acc)
+    elif isinstance(force, Blocks):
+        accelerations_blocks(pos, m, force.G, force.eps2, acc, force.slabs, force.bounds)
+    else:
+        raise TypeError(f"not a force context of make_force: {type(force).__name__}")
