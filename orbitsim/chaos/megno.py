@@ -101,6 +101,17 @@ def megno_update(state, t, dY, dt_done):
 
 
 @jit_inline
+def deltad_delta_body(deltad, delta2, dpx, dpy, dpz, dvx, dvy, dvz, dax, day, daz):
+    """One body's terms of :func:`deltad_delta`'s two running sums: ``deltad`` (delta' . delta) plus
+    dv . dr and da . dv, ``delta2`` (delta . delta) plus |dr|^2 and |dv|^2, each term added alone, x, y, z
+    (REBOUND's order: Python adds left to right, one rounding a term). Shared by :func:`deltad_delta_sums` and
+    the ensembles' SIMD lanes, one lane a call."""
+    deltad = deltad + dvx * dpx + dvy * dpy + dvz * dpz + dax * dvx + day * dvy + daz * dvz
+    delta2 = delta2 + dpx * dpx + dpy * dpy + dpz * dpz + dvx * dvx + dvy * dvy + dvz * dvz
+    return deltad, delta2
+
+
+@jit_inline
 def deltad_delta_sums(dpos, dvel, dacc, deltad, delta2):
     """:func:`deltad_delta`'s two running sums, delta' . delta and delta . delta, continued from
     ``deltad``, ``delta2`` over the bodies (columns) of ``dpos``, ``dvel``, ``dacc``, body by body.
@@ -109,18 +120,8 @@ def deltad_delta_sums(dpos, dvel, dacc, deltad, delta2):
     from one part to the next and gets the bits of one call over all of them.
     """
     for i in range(dpos.shape[1]):
-        deltad += dvel[0, i] * dpos[0, i]
-        deltad += dvel[1, i] * dpos[1, i]
-        deltad += dvel[2, i] * dpos[2, i]
-        deltad += dacc[0, i] * dvel[0, i]
-        deltad += dacc[1, i] * dvel[1, i]
-        deltad += dacc[2, i] * dvel[2, i]
-        delta2 += dpos[0, i] * dpos[0, i]
-        delta2 += dpos[1, i] * dpos[1, i]
-        delta2 += dpos[2, i] * dpos[2, i]
-        delta2 += dvel[0, i] * dvel[0, i]
-        delta2 += dvel[1, i] * dvel[1, i]
-        delta2 += dvel[2, i] * dvel[2, i]
+        deltad, delta2 = deltad_delta_body(deltad, delta2, dpos[0, i], dpos[1, i], dpos[2, i], dvel[0, i], dvel[1, i],
+                                           dvel[2, i], dacc[0, i], dacc[1, i], dacc[2, i])
     return deltad, delta2
 
 

@@ -33,7 +33,14 @@ from __future__ import annotations
 import math
 
 from orbitsim._jit import jit, jit_inline
-from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, deltad_delta_sums, megno_update, rescale_power_of_two
+from orbitsim.chaos.megno import (
+    RESCALE_ABOVE,
+    MegnoState,
+    deltad_delta_body,
+    deltad_delta_sums,
+    megno_update,
+    rescale_power_of_two,
+)
 from orbitsim.ensemble.kernels import elements_ae
 from orbitsim.ensemble.massive_record import (
     KEPLER_FAILED,
@@ -351,18 +358,7 @@ def pixel_block_lanes(g, whole, q, m, G, eps2, dt, mu_t, rec, n_rec, step0, t_st
             dvx, dvy, dvz = _row(g, TDV, lane), _row(g, TDV + 1, lane), _row(g, TDV + 2, lane)
             dax, day, daz = _row(g, DACC, lane), _row(g, DACC + 1, lane), _row(g, DACC + 2, lane)
             deltad, delta2 = _row(g, K_DELTAD, lane), _row(g, K_DELTA2, lane)
-            deltad += dvx * dpx
-            deltad += dvy * dpy
-            deltad += dvz * dpz
-            deltad += dax * dvx
-            deltad += day * dvy
-            deltad += daz * dvz
-            delta2 += dpx * dpx
-            delta2 += dpy * dpy
-            delta2 += dpz * dpz
-            delta2 += dvx * dvx
-            delta2 += dvy * dvy
-            delta2 += dvz * dvz
+            deltad, delta2 = deltad_delta_body(deltad, delta2, dpx, dpy, dpz, dvx, dvy, dvz, dax, day, daz)
             dY = dt * 2.0 * (t - t_start) * (deltad / delta2)
             before = MegnoState(_row(g, M_YS, lane), _row(g, M_YSS, lane), _row(g, M_COV_YT, lane),
                                 _row(g, M_VAR_T, lane), _row(g, M_MEAN_T, lane), _row(g, M_MEAN_Y, lane), t_start,

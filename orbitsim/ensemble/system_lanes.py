@@ -31,9 +31,11 @@ Why one module: the block layout (the row constants) and the loops that index it
 step written lane-wise part for part (drift, kick, elements, stop test), and read best beside each other;
 split, every part would import the layout and none could be read alone. The drift and the kick are called
 from one place each, so that their long code is inlined, and compiled, once. The Kepler solve
-(:func:`kepler_solve_lanes`), the orbit tracking and the stop test take their rows as arguments: the
-variational ensemble (:mod:`orbitsim.ensemble.system_tangent_lanes`), whose blocks hold a tangent vector too,
-calls them with its own layout's rows.
+(:func:`kepler_solve_lanes`), the Jacobi chain's steps (:func:`jacobi_up_lanes`, :func:`jacobi_down_lanes`),
+the pair accelerations (:func:`pair_accelerations_lanes`, their row sums started or carried by
+:func:`start_row_sums`), the orbit tracking, the stop test and a lane's stop (:func:`stop_lane`) take their rows
+as arguments: the variational ensemble (:mod:`orbitsim.ensemble.system_tangent_lanes`), whose blocks hold a
+tangent vector too, calls them with its own layout's rows.
 """
 
 from __future__ import annotations
@@ -70,7 +72,6 @@ RANK, HIT = 36, 37  # the stop test's running verdict (3 diverged, 2 escaped, 1 
 A0, MAX_E, DELTA_A = 38, 39, 40  # track_orbit's start a, largest e, largest |a - a0| / |a0| (the watched body's block)
 STOP_CODE, STOP_STEP = 41, 42  # a stopped lane's status and step count (block 0)
 BLOCK_ROWS = 43
-
 
 
 @jit_inline
@@ -208,6 +209,47 @@ def drift_body_lanes(g, base, h):
 
 
 @jit_inline
+def jacobi_up_lanes(g, base, src, dst, carry, width, weight_row):
+    """One body's step of inertial_to_jacobi on the rows at ``src``: ``dst`` = src - the interior centre of mass
+    (the ``carry`` rows), which then moves by weight (row ``weight_row``) times that. Every caller gives constant
+    rows (the plain kick, :func:`kick_lanes`, and the variational step, in their layouts)."""
+    w = _row(base, weight_row)
+    sx, sy, sz = _row(base, src), _row(base, src + 1), _row(base, src + 2)
+    dx, dy, dz = _row(base, dst), _row(base, dst + 1), _row(base, dst + 2)
+    cx, cy, cz = _row(base, carry), _row(base, carry + 1), _row(base, carry + 2)
+    for lane in range(width):
+        weight = g[w + lane]
+        com_x, com_y, com_z = g[cx + lane], g[cy + lane], g[cz + lane]
+        rel_x, rel_y, rel_z = g[sx + lane] - com_x, g[sy + lane] - com_y, g[sz + lane] - com_z
+        g[dx + lane], g[dy + lane], g[dz + lane] = rel_x, rel_y, rel_z
+        g[cx + lane] = com_x + weight * rel_x
+        g[cy + lane] = com_y + weight * rel_y
+        g[cz + lane] = com_z + weight * rel_z
+
+
+@jit_inline
+def jacobi_down_lanes(g, base, src, dst, carry, masked, width, weight_row, live_row):
+    """One body's step of jacobi_to_inertial on the three rows at ``src``: the centre of mass (``carry``) moves
+    back by weight (row ``weight_row``) times the Jacobi vector, and ``dst`` = the vector plus it (where ``masked``,
+    live lanes only: LIVE in row ``live_row``). Every caller gives constant rows (as :func:`jacobi_up_lanes`)."""
+    w, liver = _row(base, weight_row), _row(base, live_row)
+    sx, sy, sz = _row(base, src), _row(base, src + 1), _row(base, src + 2)
+    dx, dy, dz = _row(base, dst), _row(base, dst + 1), _row(base, dst + 2)
+    cx, cy, cz = _row(base, carry), _row(base, carry + 1), _row(base, carry + 2)
+    for lane in range(width):
+        weight, keep = g[w + lane], masked and not g[liver + lane] > 0.0
+        rel_x, rel_y, rel_z = g[sx + lane], g[sy + lane], g[sz + lane]
+        com_x = g[cx + lane] - weight * rel_x
+        com_y = g[cy + lane] - weight * rel_y
+        com_z = g[cz + lane] - weight * rel_z
+        g[cx + lane], g[cy + lane], g[cz + lane] = com_x, com_y, com_z
+        ox, oy, oz = g[dx + lane], g[dy + lane], g[dz + lane]
+        g[dx + lane] = ox if keep else rel_x + com_x
+        g[dy + lane] = oy if keep else rel_y + com_y
+        g[dz + lane] = oz if keep else rel_z + com_z
+
+
+@jit_inline
 def _rank_code(verdict):
     """The stop test's verdict (a rank: the larger wins) as a status of :mod:`orbitsim.ensemble.status`."""
     if verdict == 1.0:
@@ -216,77 +258,70 @@ def _rank_code(verdict):
 
 
 @jit
-def _stop_lane(g, n, lane, code, step):
-    """Lane ``lane`` stops with status ``code`` after ``step`` steps: LIVE 0 in every block."""
+def stop_lane(g, n, lane, code, step, block_rows, live_row, code_row, step_row):
+    """Lane ``lane`` stops with status ``code`` after ``step`` steps: LIVE (row ``live_row``) 0 in every block,
+    the code and step in block 0's rows ``code_row``, ``step_row``. Blocks of ``block_rows`` rows: each caller
+    gives its layout's constants (shared with the variational ensemble)."""
     for b in range(n):
-        g[_row(_block(b), LIVE) + _U(lane)] = 0.0
-    g[_row(_U(0), STOP_CODE) + _U(lane)] = code
-    g[_row(_U(0), STOP_STEP) + _U(lane)] = step
+        g[_row(_block_of(block_rows, b), live_row) + _U(lane)] = 0.0
+    g[_row(_U(0), code_row) + _U(lane)] = code
+    g[_row(_U(0), step_row) + _U(lane)] = step
 
 
 @jit
-def _stop_failed_drifts(g, n, b, step):
-    """Stop the live lanes whose drift of body ``b`` failed (their LIVE 0 in b's block only); returns how many."""
-    stopped = 0
+def stop_failed_drifts(g, n, b, step, block_rows, live_row, code_row, step_row):
+    """Stop the live lanes whose drift of body ``b`` failed (their LIVE 0 in b's block only); returns how many.
+    The layout's constants as :func:`stop_lane`'s."""
+    stopped, live0, liveb = 0, _row(_U(0), live_row), _row(_block_of(block_rows, b), live_row)
     for lane in range(LANES):
-        if g[_row(_U(0), LIVE) + _U(lane)] > 0.0 and not g[_row(_block(b), LIVE) + _U(lane)] > 0.0:
-            _stop_lane(g, n, lane, np.int64(DIVERGED), step)
+        if g[live0 + _U(lane)] > 0.0 and not g[liveb + _U(lane)] > 0.0:
+            stop_lane(g, n, lane, np.int64(DIVERGED), step, block_rows, live_row, code_row, step_row)
             stopped += 1
     return stopped
 
 
 @jit_inline
-def kick_lanes(g, n, G, eps2, dt, width):
-    """:func:`orbitsim.integrators.wisdom_holman.operators.interaction_kick` (Jacobi) of every lane: the
-    inertial positions, the pair accelerations, their Jacobi transform and the kick of the live lanes'
-    velocities, each the scalar kick's operations in its order. ``width`` is LANES (see :func:`run_group`)."""
-    b0 = _block(0)
-    # inertial positions: the centre of mass carried from body n-1 down to body 1 (jacobi_to_inertial)
-    _copy_rows(g, _block(n - 1), CARRY, b0, JP, 3)
-    for i in range(n - 1, 0, -1):
-        base = _block(i)
-        w = _row(base, WEIGHT)
-        jx, jy, jz = _row(base, JP), _row(base, JP + 1), _row(base, JP + 2)
-        cx, cy, cz = _row(base, CARRY), _row(base, CARRY + 1), _row(base, CARRY + 2)
-        ix, iy, iz = _row(base, IPOS), _row(base, IPOS + 1), _row(base, IPOS + 2)
-        for lane in range(_U(LANES)):  # x, y and z in one loop: a loop this short alone is unrolled, not vectorised
-            weight = g[w + lane]
-            rel_x, rel_y, rel_z = g[jx + lane], g[jy + lane], g[jz + lane]
-            com_x = g[cx + lane] - weight * rel_x
-            com_y = g[cy + lane] - weight * rel_y
-            com_z = g[cz + lane] - weight * rel_z
-            g[cx + lane], g[cy + lane], g[cz + lane] = com_x, com_y, com_z
-            g[ix + lane], g[iy + lane], g[iz + lane] = rel_x + com_x, rel_y + com_y, rel_z + com_z
-        if i > 1:
-            _copy_rows(g, _block(i - 1), CARRY, base, CARRY, 3)
-        else:
-            _copy_rows(g, b0, IPOS, base, CARRY, 3)
-    # the pair accelerations (interaction_accelerations, Jacobi: the (0, 1) pair left out): pair (i, j) is
-    # computed in j's block, with i's position and mass copied there, and row i's sum carried from j to j + 1
+def start_row_sums(g, block_rows, j, first, carry, width):
+    """Start or carry a pair loop's running row sums (the 3 rows at ``carry``) in block ``j``: zero where ``j``
+    is the row's first pair (``first``), else the sums so far carried from block j - 1 (blocks of
+    ``block_rows`` rows, the caller's layout)."""
+    bj = _block_of(block_rows, j)
+    if j == first:
+        for c in range(3):
+            sums = _row(bj, carry + c)
+            for lane in range(width):
+                g[sums + lane] = 0.0
+    else:
+        _copy_rows(g, bj, carry, _block_of(block_rows, j - 1), carry, 3)
+
+
+@jit_inline
+def pair_accelerations_lanes(g, n, G, eps2, width, zero_width, block_rows, pos, acc, mass, carry, other, other_s):
+    """interaction_accelerations (Jacobi: the (0, 1) pair left out) of every lane at the inertial positions
+    (rows ``pos``) into the 3 rows at ``acc``: pair (i, j > i) in j's block, with i's position and mass (row
+    ``mass``) copied to the rows ``other``, ``other_s`` there, and row i's sum carried from j to j + 1 in the
+    rows ``carry``, then added to i's: the scalar sum's order. Blocks of ``block_rows`` rows; every caller
+    gives its layout's constants (the plain kick, :func:`kick_lanes`, and the variational one). The rows are
+    zeroed in loops of ``zero_width`` lanes, the sums added in loops of ``width`` (both LANES: each kick passes
+    the counts its own loops had, a constant or one counted at run time, see :func:`run_group`)."""
     for b in range(n):
         for c in range(3):
-            acc = _row(_block(b), ACC + c)
-            for lane in range(_U(LANES)):
-                g[acc + lane] = 0.0
+            row = _row(_block_of(block_rows, b), acc + c)
+            for lane in range(zero_width):
+                g[row + lane] = 0.0
     for i in range(n):
-        bi = _block(i)
+        bi = _block_of(block_rows, i)
         start = 2 if i == 0 else i + 1
         for j in range(start, n):
-            bj = _block(j)
-            _copy_rows(g, bj, OTHER, bi, IPOS, 3)
-            _copy_row(g, _row(bj, OTHER_S), _row(bi, MASS))
-            if j == start:
-                for c in range(3):
-                    carry = _row(bj, CARRY + c)
-                    for lane in range(_U(LANES)):
-                        g[carry + lane] = 0.0
-            else:
-                _copy_rows(g, bj, CARRY, _block(j - 1), CARRY, 3)
-            xj, yj, zj = _row(bj, IPOS), _row(bj, IPOS + 1), _row(bj, IPOS + 2)
-            xi, yi, zi = _row(bj, OTHER), _row(bj, OTHER + 1), _row(bj, OTHER + 2)
-            ax, ay, az = _row(bj, CARRY), _row(bj, CARRY + 1), _row(bj, CARRY + 2)
-            accx, accy, accz = _row(bj, ACC), _row(bj, ACC + 1), _row(bj, ACC + 2)
-            mj_r, mi_r = _row(bj, MASS), _row(bj, OTHER_S)
+            bj = _block_of(block_rows, j)
+            _copy_rows(g, bj, other, bi, pos, 3)
+            _copy_row(g, _row(bj, other_s), _row(bi, mass))
+            start_row_sums(g, block_rows, j, start, carry, zero_width)
+            xj, yj, zj = _row(bj, pos), _row(bj, pos + 1), _row(bj, pos + 2)
+            xi, yi, zi = _row(bj, other), _row(bj, other + 1), _row(bj, other + 2)
+            ax, ay, az = _row(bj, carry), _row(bj, carry + 1), _row(bj, carry + 2)
+            accx, accy, accz = _row(bj, acc), _row(bj, acc + 1), _row(bj, acc + 2)
+            mj_r, mi_r = _row(bj, mass), _row(bj, other_s)
             for lane in range(_U(LANES)):
                 dx = g[xj + lane] - g[xi + lane]
                 dy = g[yj + lane] - g[yi + lane]
@@ -302,33 +337,42 @@ def kick_lanes(g, n, G, eps2, dt, width):
                 g[accy + lane] -= mi * dy
                 g[accz + lane] -= mi * dz
         if start < n:
-            _copy_rows(g, bi, CARRY, _block(n - 1), CARRY, 3)
+            _copy_rows(g, bi, carry, _block_of(block_rows, n - 1), carry, 3)
         else:  # a row without pairs adds its empty sum
             for c in range(3):
-                carry = _row(bi, CARRY + c)
-                for lane in range(_U(LANES)):
-                    g[carry + lane] = 0.0
-        accx, accy, accz = _row(bi, ACC), _row(bi, ACC + 1), _row(bi, ACC + 2)
-        cx, cy, cz = _row(bi, CARRY), _row(bi, CARRY + 1), _row(bi, CARRY + 2)
+                sums = _row(bi, carry + c)
+                for lane in range(zero_width):
+                    g[sums + lane] = 0.0
+        accx, accy, accz = _row(bi, acc), _row(bi, acc + 1), _row(bi, acc + 2)
+        cx, cy, cz = _row(bi, carry), _row(bi, carry + 1), _row(bi, carry + 2)
         for lane in range(width):
             g[accx + lane] += g[cx + lane]
             g[accy + lane] += g[cy + lane]
             g[accz + lane] += g[cz + lane]
+
+
+@jit_inline
+def kick_lanes(g, n, G, eps2, dt, width):
+    """:func:`orbitsim.integrators.wisdom_holman.operators.interaction_kick` (Jacobi) of every lane: the
+    inertial positions, the pair accelerations, their Jacobi transform and the kick of the live lanes'
+    velocities, each the scalar kick's operations in its order. ``width`` is LANES (see :func:`run_group`)."""
+    b0 = _block(0)
+    # inertial positions: the centre of mass carried from body n-1 down to body 1 (jacobi_to_inertial)
+    _copy_rows(g, _block(n - 1), CARRY, b0, JP, 3)
+    for i in range(n - 1, 0, -1):
+        base = _block(i)
+        jacobi_down_lanes(g, base, JP, IPOS, CARRY, False, _U(LANES), WEIGHT, LIVE)
+        if i > 1:
+            _copy_rows(g, _block(i - 1), CARRY, base, CARRY, 3)
+        else:
+            _copy_rows(g, b0, IPOS, base, CARRY, 3)
+    # the pair accelerations (interaction_accelerations, Jacobi: the (0, 1) pair left out)
+    pair_accelerations_lanes(g, n, G, eps2, width, _U(LANES), BLOCK_ROWS, IPOS, ACC, MASS, CARRY, OTHER, OTHER_S)
     # their Jacobi transform (inertial_to_jacobi): the interior centre of mass carried from body 1 up
     _copy_rows(g, _block(1), CARRY, b0, ACC, 3)
     for i in range(1, n):
         base = _block(i)
-        w = _row(base, WEIGHT)
-        accx, accy, accz = _row(base, ACC), _row(base, ACC + 1), _row(base, ACC + 2)
-        cx, cy, cz = _row(base, CARRY), _row(base, CARRY + 1), _row(base, CARRY + 2)
-        for lane in range(_U(LANES)):
-            weight = g[w + lane]
-            com_x, com_y, com_z = g[cx + lane], g[cy + lane], g[cz + lane]
-            rel_x, rel_y, rel_z = g[accx + lane] - com_x, g[accy + lane] - com_y, g[accz + lane] - com_z
-            g[accx + lane], g[accy + lane], g[accz + lane] = rel_x, rel_y, rel_z
-            g[cx + lane] = com_x + weight * rel_x
-            g[cy + lane] = com_y + weight * rel_y
-            g[cz + lane] = com_z + weight * rel_z
+        jacobi_up_lanes(g, base, ACC, ACC, CARRY, _U(LANES), WEIGHT)
         if i + 1 < n:
             _copy_rows(g, _block(i + 1), CARRY, base, CARRY, 3)
     # the kick: body 1's Kepler term cancels the (0, 1) pair; bodies i >= 2 add G M_i r'_i / |r'_i|^3
@@ -453,7 +497,7 @@ def run_group(g, n, G, dt, n_steps, escape_r2, check_collisions, watch):
         h = half if done == 0 else dt
         for b in range(1, n):  # bodies 1..n-1 (kepler_drift_bodies); one call site, so inlined and compiled once
             if drift_body_lanes(g, _block(b), h) > 0:
-                live_lanes -= _stop_failed_drifts(g, n, b, done + 1)
+                live_lanes -= stop_failed_drifts(g, n, b, done + 1, BLOCK_ROWS, LIVE, STOP_CODE, STOP_STEP)
         jx, jy, jz, liver = _row(b0, JP), _row(b0, JP + 1), _row(b0, JP + 2), _row(b0, LIVE)
         vx, vy, vz = _row(b0, JV), _row(b0, JV + 1), _row(b0, JV + 2)
         for lane in range(width):  # the centre of mass drifts
@@ -469,7 +513,7 @@ def run_group(g, n, G, dt, n_steps, escape_r2, check_collisions, watch):
         for lane in range(LANES):
             verdict = g[_row(b0, RANK) + _U(lane)]
             if verdict > 0.0 and g[_row(b0, LIVE) + _U(lane)] > 0.0:
-                _stop_lane(g, n, lane, _rank_code(verdict), done)
+                stop_lane(g, n, lane, _rank_code(verdict), done, BLOCK_ROWS, LIVE, STOP_CODE, STOP_STEP)
                 live_lanes -= 1
     return done
 

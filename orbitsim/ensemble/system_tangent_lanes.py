@@ -41,11 +41,20 @@ import numpy as np
 from numba import prange
 
 from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
-from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, megno_update, rescale_power_of_two
+from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, deltad_delta_body, megno_update, rescale_power_of_two
 from orbitsim.ensemble.kernels import _energy, jacobi_elements_ae, record_chaos_indicators
 from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.status import COMPLETE, DIVERGED, ENERGY_ERROR
-from orbitsim.ensemble.system_lanes import _copy_rows, _rank_code, _row, stop_test_lanes, track_orbit_lanes
+from orbitsim.ensemble.system_lanes import (
+    _copy_rows,
+    _rank_code,
+    _row,
+    start_row_sums,
+    stop_failed_drifts,
+    stop_lane,
+    stop_test_lanes,
+    track_orbit_lanes,
+)
 from orbitsim.ensemble.system_tangent_step import (
     A0,
     BLOCK_ROWS,
@@ -93,26 +102,6 @@ _U = np.uint64
 _NEAR_MARGIN = 1.0 - 1e-9
 
 
-@jit
-def _stop_lane(g, n, lane, code, step):
-    """Lane ``lane`` stops with status ``code`` after ``step`` steps: LIVE 0 in every block."""
-    for b in range(n):
-        g[_row(block(b), LIVE) + _U(lane)] = 0.0
-    g[_row(_U(0), STOP_CODE) + _U(lane)] = code
-    g[_row(_U(0), STOP_STEP) + _U(lane)] = step
-
-
-@jit
-def _stop_failed_drifts(g, n, b, step):
-    """Stop the live lanes whose drift of body ``b`` failed (their LIVE 0 in b's block only); returns how many."""
-    stopped = 0
-    for lane in range(LANES):
-        if g[_row(_U(0), LIVE) + _U(lane)] > 0.0 and not g[_row(block(b), LIVE) + _U(lane)] > 0.0:
-            _stop_lane(g, n, lane, np.int64(DIVERGED), step)
-            stopped += 1
-    return stopped
-
-
 @jit_inline
 def _megno_lanes(g, n, G, eps2, dt, t, t_start, n_before, width):
     """megno_after_step of the live lanes: the tangent gravity of every pair at the new state, deltad_delta's
@@ -123,14 +112,9 @@ def _megno_lanes(g, n, G, eps2, dt, t, t_start, n_before, width):
         _copy_rows(g, block(b), DIPOS, block(b), DP, 3)
     tangent_gravity_lanes(g, n, G, eps2, np.int64(1), width)
     b0 = block(0)
-    for r in range(3):
-        carry = _row(b0, CARRY + r)
-        for lane in range(width):
-            g[carry + lane] = 0.0
     for b in range(n):
         base = block(b)
-        if b > 0:
-            _copy_rows(g, base, CARRY, block(b - 1), CARRY, 3)
+        start_row_sums(g, BLOCK_ROWS, b, 0, CARRY, width)
         pxr, vxr, axr = _row(base, DP), _row(base, DV), _row(base, DACC)
         sd, s2, sn = _row(base, CARRY), _row(base, CARRY + 1), _row(base, CARRY + 2)
         for lane in range(_U(LANES)):
@@ -138,18 +122,7 @@ def _megno_lanes(g, n, G, eps2, dt, t, t_start, n_before, width):
             dvx, dvy, dvz = g[vxr + lane], g[vxr + _U(LANES) + lane], g[vxr + _U(2 * LANES) + lane]
             dax, day, daz = g[axr + lane], g[axr + _U(LANES) + lane], g[axr + _U(2 * LANES) + lane]
             deltad, delta2 = g[sd + lane], g[s2 + lane]
-            deltad += dvx * dpx
-            deltad += dvy * dpy
-            deltad += dvz * dpz
-            deltad += dax * dvx
-            deltad += day * dvy
-            deltad += daz * dvz
-            delta2 += dpx * dpx
-            delta2 += dpy * dpy
-            delta2 += dpz * dpz
-            delta2 += dvx * dvx
-            delta2 += dvy * dvy
-            delta2 += dvz * dvz
+            deltad, delta2 = deltad_delta_body(deltad, delta2, dpx, dpy, dpz, dvx, dvy, dvz, dax, day, daz)
             g[sd + lane], g[s2 + lane] = deltad, delta2
             g[sn + lane] += (dpx * dpx + dvx * dvx) + (dpy * dpy + dvy * dvy) + (dpz * dpz + dvz * dvz)
     _copy_rows(g, b0, CARRY, block(n - 1), CARRY, 3)
@@ -212,7 +185,7 @@ def run_tangent_group(g, n, G, eps2, dt, t_start, n_steps, escape_r2, check_coll
         for phase in range(2):  # K(dt/2) I(dt) K(dt/2); one drift call site, so inlined and compiled once
             for b in range(1, n):
                 if drift_tangent_lanes(g, block(b), half) > 0:
-                    live_lanes -= _stop_failed_drifts(g, n, b, done + 1)
+                    live_lanes -= stop_failed_drifts(g, n, b, done + 1, BLOCK_ROWS, LIVE, STOP_CODE, STOP_STEP)
             jx, vx = _row(b0, JP), _row(b0, JV)
             for r in range(3):  # the centre of mass and its variation drift
                 for lane in range(width):
@@ -232,7 +205,7 @@ def run_tangent_group(g, n, G, eps2, dt, t_start, n_steps, escape_r2, check_coll
         for lane in range(LANES):
             verdict = g[_row(b0, RANK) + _U(lane)]
             if verdict > 0.0 and g[_row(b0, LIVE) + _U(lane)] > 0.0:
-                _stop_lane(g, n, lane, _rank_code(verdict), done)
+                stop_lane(g, n, lane, _rank_code(verdict), done, BLOCK_ROWS, LIVE, STOP_CODE, STOP_STEP)
                 live_lanes -= 1
     return done
 

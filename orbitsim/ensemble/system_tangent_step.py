@@ -17,7 +17,16 @@ import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.ensemble.lanes import LANES
-from orbitsim.ensemble.system_lanes import _copy_row, _copy_rows, _row, kepler_solve_lanes
+from orbitsim.ensemble.system_lanes import (
+    _copy_row,
+    _copy_rows,
+    _row,
+    jacobi_down_lanes,
+    jacobi_up_lanes,
+    kepler_solve_lanes,
+    pair_accelerations_lanes,
+    start_row_sums,
+)
 from orbitsim.integrators.wisdom_holman.tangent import drift_derivative, kepler_drift_tangent, stiefel_g6_short
 from orbitsim.physics.kepler import KEPLER_OK, fg_apply, lagrange_coefficients
 from orbitsim.physics.tangent import pair_tangent_acceleration
@@ -47,55 +56,16 @@ def block(b):
 
 
 @jit_inline
-def jacobi_up_lanes(g, base, src, dst, carry, width):
-    """One body's step of inertial_to_jacobi on the rows at ``src``: ``dst`` = src - the interior centre of mass
-    (the ``carry`` rows), which then moves by weight times that. Every caller gives constant rows."""
-    w = _row(base, WEIGHT)
-    sx, sy, sz = _row(base, src), _row(base, src + 1), _row(base, src + 2)
-    dx, dy, dz = _row(base, dst), _row(base, dst + 1), _row(base, dst + 2)
-    cx, cy, cz = _row(base, carry), _row(base, carry + 1), _row(base, carry + 2)
-    for lane in range(width):
-        weight = g[w + lane]
-        com_x, com_y, com_z = g[cx + lane], g[cy + lane], g[cz + lane]
-        rel_x, rel_y, rel_z = g[sx + lane] - com_x, g[sy + lane] - com_y, g[sz + lane] - com_z
-        g[dx + lane], g[dy + lane], g[dz + lane] = rel_x, rel_y, rel_z
-        g[cx + lane] = com_x + weight * rel_x
-        g[cy + lane] = com_y + weight * rel_y
-        g[cz + lane] = com_z + weight * rel_z
-
-
-@jit_inline
-def jacobi_down_lanes(g, base, src, dst, carry, masked, width):
-    """One body's step of jacobi_to_inertial on the three rows at ``src``: the centre of mass (``carry``) moves
-    back by weight times the Jacobi vector, and ``dst`` = the vector plus it (where ``masked``, live lanes only)."""
-    w, liver = _row(base, WEIGHT), _row(base, LIVE)
-    sx, sy, sz = _row(base, src), _row(base, src + 1), _row(base, src + 2)
-    dx, dy, dz = _row(base, dst), _row(base, dst + 1), _row(base, dst + 2)
-    cx, cy, cz = _row(base, carry), _row(base, carry + 1), _row(base, carry + 2)
-    for lane in range(width):
-        weight, keep = g[w + lane], masked and not g[liver + lane] > 0.0
-        rel_x, rel_y, rel_z = g[sx + lane], g[sy + lane], g[sz + lane]
-        com_x = g[cx + lane] - weight * rel_x
-        com_y = g[cy + lane] - weight * rel_y
-        com_z = g[cz + lane] - weight * rel_z
-        g[cx + lane], g[cy + lane], g[cz + lane] = com_x, com_y, com_z
-        ox, oy, oz = g[dx + lane], g[dy + lane], g[dz + lane]
-        g[dx + lane] = ox if keep else rel_x + com_x
-        g[dy + lane] = oy if keep else rel_y + com_y
-        g[dz + lane] = oz if keep else rel_z + com_z
-
-
-@jit_inline
 def to_jacobi_lanes(g, n, width):
     """inertial_to_jacobi of P, V, DP, DV into JP, JV, DJP, DJV for every lane: the centre of mass (12 rows)
     carried from body 0 up the chain, left in block 0's Jacobi rows."""
     _copy_rows(g, block(1), CARRY, block(0), P, 12)
     for i in range(1, n):
         base = block(i)
-        jacobi_up_lanes(g, base, P, JP, CARRY, width)
-        jacobi_up_lanes(g, base, V, JV, CARRY + 3, width)
-        jacobi_up_lanes(g, base, DP, DJP, CARRY + 6, width)
-        jacobi_up_lanes(g, base, DV, DJV, CARRY + 9, width)
+        jacobi_up_lanes(g, base, P, JP, CARRY, width, WEIGHT)
+        jacobi_up_lanes(g, base, V, JV, CARRY + 3, width, WEIGHT)
+        jacobi_up_lanes(g, base, DP, DJP, CARRY + 6, width, WEIGHT)
+        jacobi_up_lanes(g, base, DV, DJV, CARRY + 9, width, WEIGHT)
         if i + 1 < n:
             _copy_rows(g, block(i + 1), CARRY, base, CARRY, 12)
         else:
@@ -109,10 +79,10 @@ def to_inertial_lanes(g, n, width):
     _copy_rows(g, block(n - 1), CARRY, block(0), JP, 12)
     for i in range(n - 1, 0, -1):
         base = block(i)
-        jacobi_down_lanes(g, base, JP, P, CARRY, True, width)
-        jacobi_down_lanes(g, base, JV, V, CARRY + 3, True, width)
-        jacobi_down_lanes(g, base, DJP, DP, CARRY + 6, True, width)
-        jacobi_down_lanes(g, base, DJV, DV, CARRY + 9, True, width)
+        jacobi_down_lanes(g, base, JP, P, CARRY, True, width, WEIGHT, LIVE)
+        jacobi_down_lanes(g, base, JV, V, CARRY + 3, True, width, WEIGHT, LIVE)
+        jacobi_down_lanes(g, base, DJP, DP, CARRY + 6, True, width, WEIGHT, LIVE)
+        jacobi_down_lanes(g, base, DJV, DV, CARRY + 9, True, width, WEIGHT, LIVE)
         _copy_rows(g, block(i - 1), CARRY, base, CARRY, 12)
     b0 = block(0)
     liver = _row(b0, LIVE)
@@ -202,13 +172,7 @@ def tangent_gravity_lanes(g, n, G, eps2, first_i, width):
             _copy_rows(g, bj, OTHER, bi, IPOS, 3)
             _copy_rows(g, bj, OTHER + 3, bi, DIPOS, 3)
             _copy_row(g, _row(bj, OTHER_S), _row(bi, MASS))
-            if j == 0:
-                for c in range(3):
-                    carry = _row(bj, CARRY + c)
-                    for lane in range(width):
-                        g[carry + lane] = 0.0
-            else:
-                _copy_rows(g, bj, CARRY, block(j - 1), CARRY, 3)
+            start_row_sums(g, BLOCK_ROWS, j, 0, CARRY, width)
             xj, yj, zj = _row(bj, IPOS), _row(bj, IPOS + 1), _row(bj, IPOS + 2)
             qx, qy, qz = _row(bj, DIPOS), _row(bj, DIPOS + 1), _row(bj, DIPOS + 2)
             xi, yi, zi = _row(bj, OTHER), _row(bj, OTHER + 1), _row(bj, OTHER + 2)
@@ -241,66 +205,15 @@ def kick_tangent_lanes(g, n, G, eps2, dt, width):
     _copy_rows(g, block(n - 1), CARRY + 3, b0, DJP, 3)
     for i in range(n - 1, 0, -1):
         base = block(i)
-        jacobi_down_lanes(g, base, JP, IPOS, CARRY, False, _U(LANES))
-        jacobi_down_lanes(g, base, DJP, DIPOS, CARRY + 3, False, _U(LANES))
+        jacobi_down_lanes(g, base, JP, IPOS, CARRY, False, _U(LANES), WEIGHT, LIVE)
+        jacobi_down_lanes(g, base, DJP, DIPOS, CARRY + 3, False, _U(LANES), WEIGHT, LIVE)
         if i > 1:
             _copy_rows(g, block(i - 1), CARRY, base, CARRY, 6)
         else:
             _copy_rows(g, b0, IPOS, base, CARRY, 3)
             _copy_rows(g, b0, DIPOS, base, CARRY + 3, 3)
-    # the pair accelerations (interaction_accelerations, Jacobi: the (0, 1) pair left out): pair (i, j > i) in
-    # j's block, with i's position and mass copied there, and row i's sum carried from j to j + 1
-    for b in range(n):
-        for c in range(3):
-            acc = _row(block(b), ACC + c)
-            for lane in range(width):
-                g[acc + lane] = 0.0
-    for i in range(n):
-        bi = block(i)
-        start = 2 if i == 0 else i + 1
-        for j in range(start, n):
-            bj = block(j)
-            _copy_rows(g, bj, OTHER, bi, IPOS, 3)
-            _copy_row(g, _row(bj, OTHER_S), _row(bi, MASS))
-            if j == start:
-                for c in range(3):
-                    carry = _row(bj, CARRY + c)
-                    for lane in range(width):
-                        g[carry + lane] = 0.0
-            else:
-                _copy_rows(g, bj, CARRY, block(j - 1), CARRY, 3)
-            xj, yj, zj = _row(bj, IPOS), _row(bj, IPOS + 1), _row(bj, IPOS + 2)
-            xi, yi, zi = _row(bj, OTHER), _row(bj, OTHER + 1), _row(bj, OTHER + 2)
-            ax, ay, az = _row(bj, CARRY), _row(bj, CARRY + 1), _row(bj, CARRY + 2)
-            accx, accy, accz = _row(bj, ACC), _row(bj, ACC + 1), _row(bj, ACC + 2)
-            mj_r, mi_r = _row(bj, MASS), _row(bj, OTHER_S)
-            for lane in range(_U(LANES)):
-                dx = g[xj + lane] - g[xi + lane]
-                dy = g[yj + lane] - g[yi + lane]
-                dz = g[zj + lane] - g[zi + lane]
-                r2 = dx * dx + dy * dy + dz * dz + eps2
-                g_r3 = G / (r2 * math.sqrt(r2))
-                mj = g[mj_r + lane] * g_r3
-                mi = g[mi_r + lane] * g_r3
-                g[ax + lane] += mj * dx
-                g[ay + lane] += mj * dy
-                g[az + lane] += mj * dz
-                g[accx + lane] -= mi * dx
-                g[accy + lane] -= mi * dy
-                g[accz + lane] -= mi * dz
-        if start < n:
-            _copy_rows(g, bi, CARRY, block(n - 1), CARRY, 3)
-        else:  # a row without pairs adds its empty sum
-            for c in range(3):
-                carry = _row(bi, CARRY + c)
-                for lane in range(width):
-                    g[carry + lane] = 0.0
-        accx, accy, accz = _row(bi, ACC), _row(bi, ACC + 1), _row(bi, ACC + 2)
-        cx, cy, cz = _row(bi, CARRY), _row(bi, CARRY + 1), _row(bi, CARRY + 2)
-        for lane in range(width):
-            g[accx + lane] += g[cx + lane]
-            g[accy + lane] += g[cy + lane]
-            g[accz + lane] += g[cz + lane]
+    # the pair accelerations (interaction_accelerations, Jacobi: the (0, 1) pair left out)
+    pair_accelerations_lanes(g, n, G, eps2, width, width, BLOCK_ROWS, IPOS, ACC, MASS, CARRY, OTHER, OTHER_S)
     # the tangent gravity without the (0, 1) pair, at the kick's inertial positions
     tangent_gravity_lanes(g, n, G, eps2, np.int64(2), width)
     # both to Jacobi (inertial_to_jacobi, in place): the interior centre of mass carried from body 1 up
@@ -308,8 +221,8 @@ def kick_tangent_lanes(g, n, G, eps2, dt, width):
     _copy_rows(g, block(1), CARRY + 3, b0, DACC, 3)
     for i in range(1, n):
         base = block(i)
-        jacobi_up_lanes(g, base, ACC, ACC, CARRY, _U(LANES))
-        jacobi_up_lanes(g, base, DACC, DACC, CARRY + 3, _U(LANES))
+        jacobi_up_lanes(g, base, ACC, ACC, CARRY, _U(LANES), WEIGHT)
+        jacobi_up_lanes(g, base, DACC, DACC, CARRY + 3, _U(LANES), WEIGHT)
         if i + 1 < n:
             _copy_rows(g, block(i + 1), CARRY, base, CARRY, 6)
     # the kicks: body 1's Kepler term cancels the (0, 1) pair; bodies i >= 2 add G M_i r'_i / |r'_i|^3 and, to
