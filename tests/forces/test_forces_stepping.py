@@ -136,9 +136,9 @@ def _final_error(integrator: str, forces, dt: float, t_end: float, reference: np
 
 
 #: rk4 with gr_potential and with gr_full each compile rk4's loop (and, for gr_full, IAS15's
-#: reference) for a force set no other default test uses: they run in `make test-slow`. rk4's
-#: order with a force stays in `make test` through gr (velocity-dependent, so every stage's force
-#: is exercised), gr_full's run through test_forced_runs_same_bits_however_cut[rk4].
+#: reference) for a force set no other default test uses: they run in `make test-slow`, as does euler
+#: with gr (its own forced loop). rk4's order with a force stays in `make test` through gr
+#: (velocity-dependent, so every stage's force is exercised); gr_full's runs are all in `make test-slow`.
 @pytest.mark.parametrize(("integrator", "order", "force_id"), [
     ("semi_implicit_euler", 1, GR_POTENTIAL), ("verlet", 2, GR_POTENTIAL), ("leapfrog", 2, GR_POTENTIAL),
     ("leapfrog4", 4, GR_POTENTIAL), ("wisdom_holman", 2, GR_POTENTIAL),
@@ -281,9 +281,10 @@ TRIO_WITH_FORCES = {
 }
 
 
-#: Each scheme's loop with this force set is compiled by no other test, so `make test` keeps one
-#: (Wisdom-Holman); leapfrog and IAS15 run in `make test-slow`. IAS15's resume with forces stays in
-#: `make test` at the Simulation level (test_checkpoint_resume_with_forces_is_bit_identical[ias15]).
+#: Each scheme's loop with this force set is compiled by no other test: the three run in `make test-slow`.
+#: A resume with forces stays in `make test` at the Simulation level
+#: (test_checkpoint_resume_with_forces_is_bit_identical[wisdom_holman]), and IAS15 with forces through
+#: test_ias15_velocity_dependent_force_predicts_node_velocities.
 @pytest.mark.slow  # a scenario run with forces, killed and resumed: its loop compiles for ~18 s cold
 @pytest.mark.parametrize("name", ["leapfrog", "wisdom_holman", "ias15"])
 def test_scenario_run_with_forces_resumes_to_the_same_bits(tmp_path, name) -> None:

@@ -61,7 +61,9 @@ def test_cli_lists_the_indicators_the_plan_computes():
     assert INDICATOR_CHOICES == INDICATORS
 
 
-@pytest.mark.slow  # compiles the Wisdom-Holman lanes kernels with MEGNO (~2 min cold); make test maps with leapfrog
+# Compiles the Wisdom-Holman lanes kernels with MEGNO (~2 min cold). make test's maps: the full-disk test
+# below, and tests/gpu_ensemble's simulator map, which compares a CPU map with the GPU's.
+@pytest.mark.slow
 def test_map_writes_its_file_and_figure_and_info_and_plot_read_them(scenario, tmp_path):
     out = tmp_path / "m"
     code, stdout, stderr = _map([str(scenario), *AXES, "-o", str(out)])
