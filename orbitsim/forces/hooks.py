@@ -29,15 +29,25 @@ forces compiles, imports and pays nothing for them.
   same (a run without forces keeps the ones its last step left);
 * :func:`record_force_energy`: a sample's potential gets the forces' energy added, so every
   energy a trace reports is the quantity the forces conserve;
-* :func:`gravity_only`: the context for a kick by gravity alone (Wisdom-Holman's correctors).
+* :func:`gravity_only`: the context for a kick by gravity alone (Wisdom-Holman's correctors);
+* :class:`ByVelocityForces`: a scheme's entry point as two kernels, the one a call runs chosen in Python
+  by the context (:func:`velocity_forces_in`), where the loop with the operator ``V(h)`` and the loop
+  without it differ (Wisdom-Holman). A ``if has_velocity_operator(force)`` inside one kernel would be
+  typed, lowered and optimised in both branches: Numba prunes a branch before typing only, and the
+  overload's constant is known only once the call is typed (2 s of a 16-18 s first Wisdom-Holman run);
+  :func:`no_velocity_operator` makes the plain loop refuse, while it is typed, a context that needs V.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+import numba
 import numpy as np
 from numba import types
+from numba.core.errors import TypingError
 
 from orbitsim._jit import overload_inline
 from orbitsim.physics.force_context import newtonian_accelerations
@@ -46,8 +56,9 @@ if TYPE_CHECKING:
     from orbitsim.forces.table import ForceSet
     from orbitsim.physics.force_context import ForceContext
 
-__all__ = ["Forces", "add_forces", "add_kick_forces", "add_node_forces", "forced_context", "gravity_only",
-           "has_velocity_operator", "record_force_energy", "refresh_accelerations", "velocity_operator"]
+__all__ = ["ByVelocityForces", "Forces", "add_forces", "add_kick_forces", "add_node_forces", "forced_context",
+           "gravity_only", "has_velocity_operator", "no_velocity_operator", "record_force_energy",
+           "refresh_accelerations", "velocity_forces_in", "velocity_operator"]
 
 
 class Forces(NamedTuple):
@@ -108,6 +119,33 @@ def velocity_operator(force, pos, vel, m, h):
 def has_velocity_operator(force):
     """True when the run has velocity-dependent forces (a constant of the context's type)."""
     raise NotImplementedError("called from jitted code only")
+
+
+def no_velocity_operator(force):
+    """Nothing; a typing error where the context holds velocity-dependent forces (a loop without V)."""
+    raise NotImplementedError("called from jitted code only")
+
+
+def velocity_forces_in(force: Any) -> bool:
+    """Whether the force context ``force`` holds a velocity-dependent force: :func:`has_velocity_operator`
+    asked from Python (the answer depends on the context's Numba type alone)."""
+    if getattr(force, "forces", None) is None:
+        return False
+    return _velocity_dependent(numba.typeof(force))
+
+
+@dataclass(frozen=True)
+class ByVelocityForces:
+    """A scheme's entry point as two cached kernels: ``split`` (each step wrapped in the velocity operator)
+    for a context with velocity-dependent forces, ``plain`` for any other; called as the kernel it picks,
+    with the context as its second argument (module docstring)."""
+
+    plain: Callable[..., Any]
+    split: Callable[..., Any]
+
+    def __call__(self, state: Any, force: Any, *args: Any) -> Any:
+        kernel = self.split if velocity_forces_in(force) else self.plain
+        return kernel(state, force, *args)
 
 
 def add_node_forces(force, pos, m, at, b, csv, v0, a0, dt, hn):
@@ -173,6 +211,14 @@ def _has_velocity_operator(force):
     if _velocity_dependent(force):
         return lambda force: True
     return lambda force: False
+
+
+@overload_inline(no_velocity_operator)
+def _no_velocity_operator(force):
+    if _velocity_dependent(force):
+        raise TypingError("a loop without the velocity operator was given velocity-dependent forces: "
+                          "call the scheme's entry point (ByVelocityForces), which picks the split loop")
+    return lambda force: None
 
 
 @overload_inline(add_node_forces)

@@ -15,7 +15,13 @@ import numpy as np
 from orbitsim._jit import jit, jit_inline
 from orbitsim.chaos.step import megno_after_step
 from orbitsim.events.kernels import watched_run
-from orbitsim.forces.hooks import add_kick_forces, has_velocity_operator, refresh_accelerations, velocity_operator
+from orbitsim.forces.hooks import (
+    ByVelocityForces,
+    add_kick_forces,
+    no_velocity_operator,
+    refresh_accelerations,
+    velocity_operator,
+)
 from orbitsim.forces.tangent import add_tangent_kick_forces
 from orbitsim.integrators.base import Integrator, IntegratorSpec, chaos_sample_loop, drift, grid_time, kick, sample_loop
 from orbitsim.physics.force_context import newtonian_accelerations
@@ -55,27 +61,17 @@ def _kick_kick_drift(pos, vel, acc, half_dt, dt):
 @jit_inline
 def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
     """KDK steps from ``n_done`` to ``n_to``; ``acc`` holds the accelerations at ``pos`` on entry
-    and exit (gravity and the position-only forces).
+    and exit (gravity and the position-only forces). For a context without velocity-dependent forces
+    (:func:`advance_split` is the other loop; :data:`run` picks).
 
     The steps run back to back, so each closing kick is fused with the next step's opening kick
     and drift (:func:`_kick_kick_drift`); the state at the end is bit-identical to separate steps.
-    With velocity-dependent forces each step is ``V(dt/2) KDK V(dt/2)``
-    (:func:`orbitsim.forces.hooks.velocity_operator`), and nothing is fused across the operator.
     """
+    no_velocity_operator(force)
     steps = n_to - n_done
     if steps < 1:
         return n_done, True
     half_dt = 0.5 * dt
-    if has_velocity_operator(force):
-        for _ in range(steps):
-            velocity_operator(force, pos, vel, m, half_dt)
-            kick(vel, acc, half_dt)
-            drift(pos, vel, dt)
-            newtonian_accelerations(force, pos, m, acc)
-            add_kick_forces(force, pos, m, acc)
-            kick(vel, acc, half_dt)
-            velocity_operator(force, pos, vel, m, half_dt)
-        return n_to, True
     kick(vel, acc, half_dt)
     drift(pos, vel, dt)
     for s in range(steps):
@@ -88,13 +84,30 @@ def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
 
 
 @jit_inline
+def advance_split(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """:func:`advance` with velocity-dependent forces: each step is ``V(dt/2) KDK V(dt/2)``
+    (:func:`orbitsim.forces.hooks.velocity_operator`), and nothing is fused across the operator."""
+    half_dt = 0.5 * dt
+    while n_done < n_to:
+        velocity_operator(force, pos, vel, m, half_dt)
+        kick(vel, acc, half_dt)
+        drift(pos, vel, dt)
+        newtonian_accelerations(force, pos, m, acc)
+        add_kick_forces(force, pos, m, acc)
+        kick(vel, acc, half_dt)
+        velocity_operator(force, pos, vel, m, half_dt)
+        n_done += 1
+    return n_done, True
+
+
+@jit_inline
 def step(pos, vel, acc, m, force, dt, work):
-    """One KDK step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit."""
+    """One KDK step; ``acc`` holds a(x_n) on entry and a(x_{n+1}) on exit (no velocity-dependent forces)."""
     advance(pos, vel, acc, m, force, dt, work, 0.0, 0, 1)
 
 
 @jit
-def run(state, force, dt, work, t0, n_done, targets, record, out):
+def _run_plain(state, force, dt, work, t0, n_done, targets, record, out):
     """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`; a forced run's ``acc``
     afresh first (:func:`~orbitsim.forces.hooks.refresh_accelerations`)."""
     pos, vel, acc, m = state
@@ -103,9 +116,28 @@ def run(state, force, dt, work, t0, n_done, targets, record, out):
 
 
 @jit
-def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+def _run_split(state, force, dt, work, t0, n_done, targets, record, out):
+    """:func:`_run_plain` of :func:`advance_split`."""
+    pos, vel, acc, m = state
+    refresh_accelerations(force, pos, vel, m, acc, False)
+    return sample_loop(advance_split, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
+
+
+@jit
+def _run_watched_plain(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`_run_plain` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
     return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
+
+
+@jit
+def _run_watched_split(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`_run_split` one step at a time with the events watch after each."""
+    return watched_run(advance_split, state, force, dt, work, t0, n_done, targets, record, out, watch)
+
+
+#: The sampled run and the watched run, each the kernel of the call's forces (:class:`ByVelocityForces`).
+run = ByVelocityForces(_run_plain, _run_split)
+run_watched = ByVelocityForces(_run_watched_plain, _run_watched_split)
 
 
 @jit_inline

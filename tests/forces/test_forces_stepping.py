@@ -243,6 +243,47 @@ def test_runs_without_forces_keep_their_plain_loop() -> None:
     assert forced.step_force.forces is not None and type(forced.step_force) is type(forced.force)
 
 
+#: Force rows and whether they need the velocity operator V(h): gr and migration act on velocities.
+_VELOCITY_CASES = [
+    (None, False),
+    ([(GR_POTENTIAL, 0, {P_C: C_STRONG}, None)], False),
+    ([(HARMONICS, 0, HARMONIC_PARAMS, None)], False),
+    ([(GR, 0, {P_C: C_STRONG}, None)], True),
+    ([(MIGRATION, 0, {}, np.full((3, 3), np.inf))], True),
+    ([(GR_POTENTIAL, 0, {P_C: C_STRONG}, None), (GR, 0, {P_C: C_STRONG}, None)], True),
+]
+
+
+@pytest.mark.parametrize("integrator", ["verlet", "wisdom_holman"])
+@pytest.mark.parametrize(("rows", "velocity"), _VELOCITY_CASES)
+def test_a_scheme_with_a_velocity_operator_runs_the_loop_of_its_forces(integrator, rows, velocity) -> None:
+    """verlet's and Wisdom-Holman's ``run`` and ``run_watched`` are two kernels each (ByVelocityForces), so
+    a run types and compiles only the loop it takes: the split loop V(dt/2) S V(dt/2) exactly when a force
+    depends on velocities, read from the context's type as the hooks read it."""
+    from orbitsim.forces.hooks import velocity_forces_in
+
+    m, x, v = _system()
+    sim = Simulation(m, x, v, integrator, 1e-2, forces=None if rows is None else make_forces(3, rows))
+    assert velocity_forces_in(sim.step_force) is velocity
+    for entry in (sim.scheme.run, sim.scheme.run_watched):
+        picked = entry.split if velocity else entry.plain
+        assert picked.py_func.__name__.endswith("_split" if velocity else "_plain")
+
+
+def test_the_loop_without_the_velocity_operator_refuses_velocity_forces() -> None:
+    """Called directly with gr, the plain loop fails while Numba types it, never runs without V(h)."""
+    from numba.core.errors import TypingError
+
+    from orbitsim.integrators import verlet
+
+    m, x, v = _system()
+    sim = Simulation(m, x, v, "verlet", 1e-2, forces=make_forces(3, [(GR, 0, {P_C: C_STRONG}, None)]))
+    state = (sim.pos, sim.vel, sim.acc, sim.m)
+    with pytest.raises(TypingError, match="velocity-dependent forces"):
+        verlet._run_plain(state, sim.step_force, sim.dt, sim.work, 0.0, 0, np.array([1]), np.array([True]),
+                          np.zeros((1, 1)))
+
+
 @pytest.mark.parametrize(("integrator", "kwargs", "words"), [
     ("trace", {}, "trace cannot apply"),
     ("verlet", {"settings": {}, "force_id": GR_FULL}, "verlet cannot apply gr_full"),

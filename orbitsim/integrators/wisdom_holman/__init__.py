@@ -67,9 +67,9 @@ import numpy as np
 
 from orbitsim._jit import jit, jit_inline
 from orbitsim.events.kernels import watched_run
-from orbitsim.forces.hooks import has_velocity_operator, velocity_operator
+from orbitsim.forces.hooks import ByVelocityForces, no_velocity_operator, velocity_operator
 from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sample_loop
-from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector_if_any
+from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector
 from orbitsim.integrators.wisdom_holman.operators import (
     DEMOCRATIC_HELIOCENTRIC,
     F_PHASE,
@@ -156,7 +156,7 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
         mu = G * np.cumsum(m)  # G M_i, M_i summed left to right
     else:
         mu = np.full(n, G * m[0])
-    # no corrector: None, a type of its own, so a run without one compiles none (apply_corrector_if_any)
+    # no corrector: None, a type of its own, so a run without one compiles none (apply_corrector)
     stage_a, stage_b = CORRECTOR_STAGES[config["corrector"]] if config["corrector"] else (None, None)
     flags = np.zeros(4, dtype=np.int64)
     flags[F_PHASE] = PHASE_UNSET
@@ -212,7 +212,7 @@ def _start(pos, vel, m, force, dt, work):
     for k in range(flags.shape[0]):
         flags[k] = 0
     flags[F_PHASE] = PHASE_SYNCED
-    return apply_corrector_if_any(jpos, jvel, m, force, dt, 1.0, work)
+    return apply_corrector(jpos, jvel, m, force, dt, 1.0, work, work.stage_a, work.stage_b)
 
 
 @jit_inline
@@ -228,7 +228,7 @@ def _synchronize(pos, vel, m, force, dt, work):
     if status != KEPLER_OK:
         return status, body
     com_drift(spos, svel, half)
-    status, body = apply_corrector_if_any(spos, svel, m, force, dt, -1.0, work)
+    status, body = apply_corrector(spos, svel, m, force, dt, -1.0, work, work.stage_a, work.stage_b)
     if status != KEPLER_OK:
         return status, body
     coordinates = work.config[0]
@@ -255,7 +255,7 @@ def step(pos, vel, acc, m, force, dt, work):
     """One step, ``pos``/``vel`` in and out (``acc`` is not used); same bits as :func:`run`.
 
     Inlined, with the restart and synchronisation around it (``_ensure_started``, ``_start``,
-    ``_synchronize``): with velocity-dependent forces :func:`advance` takes this step every step,
+    ``_synchronize``): with velocity-dependent forces :func:`advance_split` takes this step every step,
     and the calls' reference counts on ``work``'s arrays cost ~8% of a Wisdom-Holman + ``gr`` step
     of the Solar System (and compiling them apart took longer than inlined)."""
     # int64 values, not literals: a literal argument compiles a callee once more for its own type.
@@ -269,7 +269,7 @@ def step(pos, vel, acc, m, force, dt, work):
         _fail(pos, vel, work, status, body, no_step)
 
 
-@jit
+@jit_inline
 def _advance_to(target, n_done, m, force, dt, work):
     """Steps of the mapping state until ``n_done == target``; returns ``(n_done, status, body)``.
 
@@ -309,21 +309,9 @@ def _advance_to(target, n_done, m, force, dt, work):
 def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
     """Steps from ``n_done`` to ``n_to``, then ``pos``/``vel`` synchronised (on a copy of the
     mapping state, which goes on unsynchronised); False on a Kepler failure, recorded in ``work``
-    with the state poisoned (:func:`_fail`).
-
-    With velocity-dependent forces each step is ``V(dt/2) S(dt) V(dt/2)``, S a step synchronised
-    at its end: the operators change the inertial velocities, so the map restarts from the
-    inertial state after each (``_ensure_started`` sees the change), as REBOUND's WHFast does in
-    safe mode when an operator modified the particles (REBOUNDx's arrangement for WHFast).
-    """
-    if has_velocity_operator(force):
-        half = 0.5 * dt
-        while n_done < n_to:
-            velocity_operator(force, pos, vel, m, half)
-            step(pos, vel, acc, m, force, dt, work)
-            velocity_operator(force, pos, vel, m, half)
-            n_done += 1
-        return n_done, True
+    with the state poisoned (:func:`_fail`). For a context without velocity-dependent forces
+    (:func:`advance_split` is the other loop; :data:`run` picks)."""
+    no_velocity_operator(force)
     if not _ensure_started(pos, vel, m, force, dt, work, n_done):
         return n_done, False
     n_done, status, body = _advance_to(n_to, n_done, m, force, dt, work)
@@ -337,22 +325,54 @@ def advance(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
     return n_done, True
 
 
+@jit_inline
+def advance_split(pos, vel, acc, m, force, dt, work, t0, n_done, n_to):
+    """:func:`advance` with velocity-dependent forces: each step is ``V(dt/2) S(dt) V(dt/2)``, S a step
+    synchronised at its end. The operators change the inertial velocities, so the map restarts from the
+    inertial state after each (``_ensure_started`` sees the change), as REBOUND's WHFast does in safe mode
+    when an operator modified the particles (REBOUNDx's arrangement for WHFast)."""
+    half = 0.5 * dt
+    while n_done < n_to:
+        velocity_operator(force, pos, vel, m, half)
+        step(pos, vel, acc, m, force, dt, work)
+        velocity_operator(force, pos, vel, m, half)
+        n_done += 1
+    return n_done, True
+
+
 @jit
-def run(state, force, dt, work, t0, n_done, targets, record, out):
-    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`: synchronises only at
-    samples and at the end of the call. The map continues from its internal state, or restarts
-    from ``pos``/``vel`` if they changed, at the start of every call (with velocity-dependent
-    forces, at every step)."""
+def _run_plain(state, force, dt, work, t0, n_done, targets, record, out):
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance`: synchronises only at samples
+    and at the end of the call. The map continues from its internal state, or restarts from
+    ``pos``/``vel`` if they changed, at the start of every call."""
     pos, vel, _, m = state
-    if not has_velocity_operator(force) and not _ensure_started(pos, vel, m, force, dt, work, n_done):
+    if not _ensure_started(pos, vel, m, force, dt, work, n_done):
         return 0, n_done, False
     return sample_loop(advance, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
 
 
 @jit
-def run_watched(state, force, dt, work, t0, n_done, targets, record, out, watch):
-    """:func:`run` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
+def _run_split(state, force, dt, work, t0, n_done, targets, record, out):
+    """:func:`~orbitsim.integrators.base.sample_loop` of :func:`advance_split` (restarts at every step)."""
+    return sample_loop(advance_split, grid_time, state, force, dt, work, t0, n_done, targets, record, out)
+
+
+@jit
+def _run_watched_plain(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`_run_plain` one step at a time with the events watch after each (:mod:`orbitsim.events`)."""
     return watched_run(advance, state, force, dt, work, t0, n_done, targets, record, out, watch)
+
+
+@jit
+def _run_watched_split(state, force, dt, work, t0, n_done, targets, record, out, watch):
+    """:func:`_run_split` one step at a time with the events watch after each."""
+    return watched_run(advance_split, state, force, dt, work, t0, n_done, targets, record, out, watch)
+
+
+#: The scheme's sampled run and its watched run, each the kernel of the call's forces (:class:`ByVelocityForces`):
+#: one kernel for both loops would type and compile the loop it never runs (2 s of a first run).
+run = ByVelocityForces(_run_plain, _run_split)
+run_watched = ByVelocityForces(_run_watched_plain, _run_watched_split)
 
 
 WISDOM_HOLMAN = Integrator(

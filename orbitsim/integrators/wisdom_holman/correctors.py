@@ -31,9 +31,8 @@ References
 from __future__ import annotations
 
 import numpy as np
-from numba import types
 
-from orbitsim._jit import jit, overload_inline
+from orbitsim._jit import jit, jit_inline
 from orbitsim.forces.hooks import gravity_only
 from orbitsim.integrators.wisdom_holman.operators import (
     JACOBI,
@@ -101,7 +100,7 @@ def _stages(order: int) -> tuple[np.ndarray, np.ndarray]:
 CORRECTOR_STAGES: dict[int, tuple[np.ndarray, np.ndarray]] = {p: _stages(p) for p in CORRECTOR_ORDERS}
 
 
-@jit
+@jit_inline
 def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, kstage, kick_force):
     """One stage Z(a, b) = K(a) I(-b) K(-2a) I(b) K(a) (Jacobi); returns ``(status, body)``.
 
@@ -122,28 +121,20 @@ def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, ks
     return kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
 
 
-def apply_corrector_if_any(jpos, jvel, m, force, dt, inv, work):
-    """:func:`apply_corrector` where ``work`` holds a corrector's stage tables, nothing (``(KEPLER_OK, 0)``)
-    where they are None: chosen while Numba types the caller (jitted callers only), so a run without a
-    corrector compiles none (its stages cost 5-8 s of a first Wisdom-Holman run)."""
-    raise NotImplementedError("called from jitted code only")
-
-
-@overload_inline(apply_corrector_if_any)
-def _apply_corrector_if_any(jpos, jvel, m, force, dt, inv, work):
-    if isinstance(work.types[work.fields.index("stage_a")], types.NoneType):
-        return lambda jpos, jvel, m, force, dt, inv, work: (np.int64(KEPLER_OK), np.int64(0))
-    return lambda jpos, jvel, m, force, dt, inv, work: apply_corrector(jpos, jvel, m, force, dt, inv, work)
-
-
 @jit
-def apply_corrector(jpos, jvel, m, force, dt, inv, work):
-    """C (``inv = 1.0``) or C^-1 (``inv = -1.0``) of the selected order; returns ``(status, body)``.
+def apply_corrector(jpos, jvel, m, force, dt, inv, work, stage_a, stage_b):
+    """C (``inv = 1.0``) or C^-1 (``inv = -1.0``) of the order whose stage tables ``stage_a``, ``stage_b``
+    (``work.stage_a``, ``work.stage_b``) are; returns ``(status, body)``. Without a corrector they are
+    None, and the function is ``return (KEPLER_OK, 0)``: Numba removes a branch on an argument that is
+    None before typing, so a run without a corrector types and compiles no stage (they cost 5-8 s of a
+    first Wisdom-Holman run).
 
+    The tables are arguments, not read from ``work`` here, for that pruning; one layer of calls, not an
+    overload around this function, which Numba would compile once more on its own (0.8 s).
     Correctors need Jacobi coordinates (enforced by the settings validation; checked here too).
     """
-    stage_a = work.stage_a
-    stage_b = work.stage_b
+    if stage_a is None or stage_b is None:
+        return np.int64(KEPLER_OK), np.int64(0)
     if work.config[0] != JACOBI:
         raise ValueError("wisdom_holman: symplectic correctors need Jacobi coordinates")
     G = force.G
@@ -162,4 +153,4 @@ def apply_corrector(jpos, jvel, m, force, dt, inv, work):
                                        kick_force)
         if status != KEPLER_OK:
             return status, body
-    return KEPLER_OK, 0
+    return np.int64(KEPLER_OK), np.int64(0)
