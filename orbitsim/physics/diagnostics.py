@@ -54,7 +54,7 @@ BUFFERED_POTENTIAL_MIN_N = SMALL_N_MAX + 1
 POTENTIAL_STRIDES = 64
 
 
-@jit
+@jit_inline
 def kinetic_energy(vel, m):
     """Kinetic energy sum m v^2 / 2 of velocities ``vel`` (3, N) and masses ``m`` (N,)."""
     total = 0.0
@@ -220,7 +220,7 @@ def potential_energy_at(force, pos, m, rows):
     return potential_of(force, pos, m, rows)
 
 
-@jit
+@jit_inline
 def momentum_into(vel, m, out):
     """Total linear momentum into ``out`` (3,)."""
     for c in range(3):
@@ -230,7 +230,7 @@ def momentum_into(vel, m, out):
         out[c] = total
 
 
-@jit
+@jit_inline
 def angular_momentum_into(pos, vel, m, out):
     """Total angular momentum about the origin into ``out`` (3,)."""
     lx = 0.0
