@@ -253,7 +253,7 @@ def kick_drift(pos, vel, acc, h_kick, h_drift):
             pos[c, i] += h_drift * v_new
 
 
-@jit_inline
+@jit
 def is_finite_state(pos, vel):
     """True when every coordinate and velocity component is finite."""
     for c in range(3):
@@ -271,9 +271,10 @@ def record_sample(r, n_done, time, pos, vel, m, force, out):
     :data:`SCALAR_COLUMNS`, ``snapshots`` (S, 2, 3, N) or empty when the state is not recorded,
     ``rows`` scratch for the potential. Returns False, writing nothing, if the state is not finite.
 
-    The finite check, kinetic energy and momenta are inlined here (``jit_inline``): compiled apart, each
-    was a library of its own that a first run compiled, wrapped and linked (0.3-0.4 s of every scheme's
-    first run); a sample's arithmetic is the same either way.
+    The kinetic energy and momenta are inlined here (``jit_inline``): compiled apart, each was a library
+    of its own that a first run compiled, wrapped and linked (0.3-0.4 s of every scheme's first run); a
+    sample's arithmetic is the same either way. The finite check stays a function of its own: IAS15's
+    step calls it too, and inlined there twice it cost that first run more than it saved here.
     """
     if not is_finite_state(pos, vel):
         return False
