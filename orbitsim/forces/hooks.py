@@ -44,7 +44,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-import numba
 import numpy as np
 from numba import types
 from numba.core.errors import TypingError
@@ -128,10 +127,14 @@ def no_velocity_operator(force):
 
 def velocity_forces_in(force: Any) -> bool:
     """Whether the force context ``force`` holds a velocity-dependent force: :func:`has_velocity_operator`
-    asked from Python (the answer depends on the context's Numba type alone)."""
-    if getattr(force, "forces", None) is None:
+    asked from Python, from the records' classes (the records' Numba types are those classes), in
+    microseconds: it runs at every kernel call."""
+    forces = getattr(force, "forces", None)
+    if forces is None:
         return False
-    return _velocity_dependent(numba.typeof(force))
+    from orbitsim.forces.terms import VELOCITY_TERMS  # noqa: PLC0415 -- lazy: off `orbitsim run`/`validate`
+
+    return any(isinstance(term, VELOCITY_TERMS) for term in forces.terms)
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ from orbitsim.forces.gr import (
 from orbitsim.forces.gr_full import WORK_ROWS, gr_full_accelerations, gr_full_energy
 from orbitsim.forces.harmonics import harmonics_accelerations, harmonics_potential
 from orbitsim.forces.migration import centre_of_mass, migration_accelerations
-from orbitsim.forces.terms import GRFullTerm, GRPotentialTerm, GRTerm, HarmonicsTerm, MigrationTerm
+from orbitsim.forces.terms import VELOCITY_TERMS, GRFullTerm, GRPotentialTerm, GRTerm, HarmonicsTerm, MigrationTerm
 
 __all__ = ["SCRATCH_ROWS", "add_position_forces", "add_velocity_forces", "force_energy", "has_velocity_terms",
            "make_force_scratch", "velocity_operator"]
@@ -70,7 +70,7 @@ def _record(term: types.Type) -> type | None:
 
 def has_velocity_terms(terms: types.Type) -> bool:
     """True when a terms tuple's Numba type holds a velocity-dependent force (typing time)."""
-    return any(_record(t) in (GRTerm, GRFullTerm, MigrationTerm) for t in terms)
+    return any(_record(t) in VELOCITY_TERMS for t in terms)
 
 
 # -- one record ---------------------------------------------------------------------------------
