@@ -8,7 +8,7 @@ import numba
 import numpy as np
 
 from orbitsim._jit import jit
-from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kick
+from orbitsim.integrators.wisdom_holman.operators import interaction_kick
 
 
 @jit
@@ -17,7 +17,7 @@ def kick_per_system(jpos, jvel, m, weights, mu, ipos, iacc, reps):
     for k in range(jpos.shape[0]):
         p, v, mk, w, u, ip, ia = jpos[k], jvel[k], m[k], weights[k], mu[k], ipos[k], iacc[k]
         for _ in range(reps):
-            interaction_kick(p, v, mk, 1.0, 0.0, 1e-9, JACOBI, w, u, ip, ia, None)
+            interaction_kick(p, v, mk, 1.0, 0.0, 1e-9, None, w, u, ip, ia, None)
 
 @jit
 def kick_lanes(jpos, jvel, m, weights, mu, ipos, acc, reps):

@@ -59,7 +59,7 @@ from orbitsim.ensemble.status import (
     MEGNO,
     SURVIVAL_TIME,
 )
-from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kick
+from orbitsim.integrators.wisdom_holman.operators import interaction_kick
 from orbitsim.integrators.wisdom_holman.tangent import (
     T_ACC,
     T_DACC,
@@ -193,7 +193,7 @@ def run_system(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_col
             break
         for c in range(3):
             jpos[c, 0] += h * jvel[c, 0]  # the centre of mass drifts
-        interaction_kick(jpos, jvel, m, G, eps2, dt, JACOBI, weights, mu, ipos, iacc, None)
+        interaction_kick(jpos, jvel, m, G, eps2, dt, None, weights, mu, ipos, iacc, None)
         done += 1
         max_e, delta_a = track_orbit(jpos, jvel, mu, watch, a0, max_e, delta_a)
         status = _stop_reason(ipos, radii, escape_r2, check_collisions)

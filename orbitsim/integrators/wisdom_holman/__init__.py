@@ -171,6 +171,7 @@ def make_work(m: np.ndarray, G: float, settings: Mapping[str, Any] | None = None
         config=np.array([coordinates, config["corrector"]], dtype=np.int64),
         kscratch=np.zeros((KEPLER_SCRATCH_ROWS, n)),
         kstage=np.zeros(n, dtype=np.int64),
+        heliocentric=None if coordinates == JACOBI else np.int64(coordinates),
     )
 
 
@@ -206,7 +207,7 @@ def _start(pos, vel, m, force, dt, work):
     """Mapping state from the inertial ``pos``, ``vel``, then the corrector C; returns (status, body)."""
     jpos = work.jpos
     jvel = work.jvel
-    from_inertial(pos, vel, m, work.weights, work.config[0], jpos, jvel)
+    from_inertial(pos, vel, m, work.weights, work.heliocentric, jpos, jvel)
     _remember(pos, vel, work)
     flags = work.flags
     for k in range(flags.shape[0]):
@@ -231,9 +232,8 @@ def _synchronize(pos, vel, m, force, dt, work):
     status, body = apply_corrector(spos, svel, m, force, dt, -1.0, work, work.stage_a, work.stage_b)
     if status != KEPLER_OK:
         return status, body
-    coordinates = work.config[0]
-    to_inertial_pos(spos, m, work.weights, coordinates, pos)
-    to_inertial_vel(svel, m, work.weights, coordinates, vel)
+    to_inertial_pos(spos, m, work.weights, work.heliocentric, pos)
+    to_inertial_vel(svel, m, work.weights, work.heliocentric, vel)
     _remember(pos, vel, work)
     return KEPLER_OK, 0
 
@@ -280,8 +280,8 @@ def _advance_to(target, n_done, m, force, dt, work):
     """
     jpos, jvel = work.jpos, work.jvel
     flags = work.flags
-    coordinates = work.config[0]
-    heliocentric = coordinates == DEMOCRATIC_HELIOCENTRIC
+    heliocentric = work.heliocentric  # None in Jacobi coordinates: the jumps compile empty, and never run
+    jumps = work.config[0] == DEMOCRATIC_HELIOCENTRIC
     weights, mu = work.weights, work.mu
     ipos, acc = work.ipos, work.iacc
     ks, kstage = work.kscratch, work.kstage
@@ -295,11 +295,11 @@ def _advance_to(target, n_done, m, force, dt, work):
             return n_done, status, body
         for c in range(3):
             jpos[c, 0] += h * jvel[c, 0]  # the centre of mass drifts
-        if heliocentric:
-            jump(jpos, jvel, m, half)
-        interaction_kick(jpos, jvel, m, G, eps2, dt, coordinates, weights, mu, ipos, acc, force)
-        if heliocentric:
-            jump(jpos, jvel, m, half)
+        if jumps:
+            jump(jpos, jvel, m, half, heliocentric)
+        interaction_kick(jpos, jvel, m, G, eps2, dt, heliocentric, weights, mu, ipos, acc, force)
+        if jumps:
+            jump(jpos, jvel, m, half, heliocentric)
         flags[F_PHASE] = PHASE_LAGGING
         n_done += 1
     return n_done, KEPLER_OK, 0

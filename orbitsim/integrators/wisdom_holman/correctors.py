@@ -110,14 +110,12 @@ def corrector_stage(jpos, jvel, m, G, eps2, a, b, weights, mu, ipos, acc, ks, ks
     status, body = kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    # JACOBI as a run-time int64, as the run's own kicks pass it (work.config): a literal would
-    # compile interaction_kick's pair loop a second time (Numba compiles a callee once per literal).
-    coordinates = np.int64(JACOBI)
-    interaction_kick(jpos, jvel, m, G, eps2, -b, coordinates, weights, mu, ipos, acc, kick_force)
+    # Jacobi: heliocentric None, as a Jacobi run's own kicks pass it (WHWork.heliocentric)
+    interaction_kick(jpos, jvel, m, G, eps2, -b, None, weights, mu, ipos, acc, kick_force)
     status, body = kepler_drift_bodies(jpos, jvel, mu, -2.0 * a, 1, ks, kstage)
     if status != KEPLER_OK:
         return status, body
-    interaction_kick(jpos, jvel, m, G, eps2, b, coordinates, weights, mu, ipos, acc, kick_force)
+    interaction_kick(jpos, jvel, m, G, eps2, b, None, weights, mu, ipos, acc, kick_force)
     return kepler_drift_bodies(jpos, jvel, mu, a, 1, ks, kstage)
 
 

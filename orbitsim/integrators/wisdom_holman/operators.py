@@ -73,6 +73,10 @@ class WHWork(NamedTuple):
     stage_b: np.ndarray | None  #: (S,) corrector stages: kick coefficients, in units of dt (None: no corrector)
     flags: np.ndarray  #: int64 (4,): phase, failure status, failing body, failing step (F_* below)
     config: np.ndarray  #: int64 (2,): coordinates id, corrector order
+    #: None in Jacobi coordinates, else DEMOCRATIC_HELIOCENTRIC: the operators take it as their ``heliocentric``
+    #: argument, and Numba removes a branch on an argument that is None before typing, so a Jacobi run
+    #: compiles no democratic heliocentric code (1.5-2 s of a first run when ``config[0]`` chose at run time)
+    heliocentric: np.int64 | None
     kscratch: np.ndarray  #: (KEPLER_SCRATCH_ROWS, N) per-body scratch of the Kepler solver
     kstage: np.ndarray  #: int64 (N,) per-body stage of the Kepler solver
 
@@ -96,8 +100,11 @@ def com_drift(jpos, jvel, h):
 
 
 @jit
-def jump(hpos, hvel, m, h):
-    """Democratic heliocentric jump: ``Q_i += h P / m_0`` for i >= 1."""
+def jump(hpos, hvel, m, h, heliocentric):
+    """Democratic heliocentric jump: ``Q_i += h P / m_0`` for i >= 1 (nothing in Jacobi coordinates,
+    ``heliocentric`` None: compiled empty there)."""
+    if heliocentric is None:
+        return
     n = hpos.shape[1]
     for c in range(3):
         p = 0.0
@@ -109,41 +116,36 @@ def jump(hpos, hvel, m, h):
 
 
 @jit
-def to_inertial_pos(jpos, m, weights, coordinates, dst):
-    """Inertial positions of mapping positions ``jpos`` into ``dst``."""
-    if coordinates == JACOBI:
+def to_inertial_pos(jpos, m, weights, heliocentric, dst):
+    """Inertial positions of mapping positions ``jpos`` into ``dst`` (``heliocentric``: None for Jacobi
+    coordinates, :attr:`WHWork.heliocentric`)."""
+    if heliocentric is None:
         jacobi_to_inertial(jpos, weights, dst)
-    elif coordinates == DEMOCRATIC_HELIOCENTRIC:
+    else:
         democratic_heliocentric_to_inertial_pos(jpos, m, dst)
-    else:
-        raise ValueError("wisdom_holman: unknown coordinates id")
 
 
 @jit
-def to_inertial_vel(jvel, m, weights, coordinates, dst):
+def to_inertial_vel(jvel, m, weights, heliocentric, dst):
     """Inertial velocities of mapping velocities ``jvel`` into ``dst``."""
-    if coordinates == JACOBI:
+    if heliocentric is None:
         jacobi_to_inertial(jvel, weights, dst)
-    elif coordinates == DEMOCRATIC_HELIOCENTRIC:
-        democratic_heliocentric_to_inertial_vel(jvel, m, dst)
     else:
-        raise ValueError("wisdom_holman: unknown coordinates id")
+        democratic_heliocentric_to_inertial_vel(jvel, m, dst)
 
 
 @jit
-def from_inertial(pos, vel, m, weights, coordinates, jpos, jvel):
+def from_inertial(pos, vel, m, weights, heliocentric, jpos, jvel):
     """Mapping coordinates of the inertial state ``pos``, ``vel`` into ``jpos``, ``jvel``."""
-    if coordinates == JACOBI:
+    if heliocentric is None:
         inertial_to_jacobi(pos, weights, jpos)
         inertial_to_jacobi(vel, weights, jvel)
-    elif coordinates == DEMOCRATIC_HELIOCENTRIC:
-        inertial_to_democratic_heliocentric(pos, vel, m, jpos, jvel)
     else:
-        raise ValueError("wisdom_holman: unknown coordinates id")
+        inertial_to_democratic_heliocentric(pos, vel, m, jpos, jvel)
 
 
 @jit
-def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
+def interaction_accelerations(pos, m, G, eps2, heliocentric, acc):
     """Pair accelerations of H_interaction at inertial ``pos`` into ``acc`` (3, N).
 
     Jacobi leaves out the (0, 1) pair; democratic heliocentric every pair with body 0. Each pair
@@ -154,7 +156,7 @@ def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
     for c in range(3):
         for i in range(n):
             acc[c, i] = 0.0
-    first = 1 if coordinates == DEMOCRATIC_HELIOCENTRIC else 0
+    first = 0 if heliocentric is None else 1
     for i in range(first, n):
         if stop_requested():  # a stop (orbitsim.stopping): the caller undoes the call
             return
@@ -183,13 +185,14 @@ def interaction_accelerations(pos, m, G, eps2, coordinates, acc):
 
 
 @jit
-def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, acc, force):
+def interaction_kick(jpos, jvel, m, G, eps2, h, heliocentric, weights, mu, ipos, acc, force):
     """The kick ``I(h)`` of the mapping state ``jpos``, ``jvel``; ``ipos``, ``acc`` are scratch.
 
     ``force``: the run's force context, whose position-only forces are added to the inertial
     accelerations before their Jacobi transform, as REBOUND's WHFast adds ``additional_forces``
     (:func:`orbitsim.forces.hooks.add_kick_forces`); a context without forces, or None (the
-    correctors' kicks), compiles to the kick without them.
+    correctors' kicks), compiles to the kick without them. ``heliocentric``: None for Jacobi coordinates
+    (:attr:`WHWork.heliocentric`).
 
     Jacobi: the inertial positions (:func:`~orbitsim.physics.coordinates.jacobi_to_inertial`),
     the pair accelerations, their Jacobi transform
@@ -198,7 +201,7 @@ def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, 
     step, and each array-taking call costs a reference-count round trip (module docstring).
     """
     n = jpos.shape[1]
-    if coordinates == JACOBI:
+    if heliocentric is None:
         for c in range(3):
             com = jpos[c, 0]
             for i in range(n - 1, 0, -1):
@@ -206,13 +209,11 @@ def interaction_kick(jpos, jvel, m, G, eps2, h, coordinates, weights, mu, ipos, 
                 com = com - weights[i] * rel
                 ipos[c, i] = rel + com
             ipos[c, 0] = com
-    elif coordinates == DEMOCRATIC_HELIOCENTRIC:
-        democratic_heliocentric_to_inertial_pos(jpos, m, ipos)
     else:
-        raise ValueError("wisdom_holman: unknown coordinates id")
-    interaction_accelerations(ipos, m, G, eps2, coordinates, acc)
+        democratic_heliocentric_to_inertial_pos(jpos, m, ipos)
+    interaction_accelerations(ipos, m, G, eps2, heliocentric, acc)
     add_kick_forces(force, ipos, m, acc)
-    if coordinates == DEMOCRATIC_HELIOCENTRIC:
+    if heliocentric is not None:
         for c in range(3):
             for i in range(1, n):
                 jvel[c, i] += h * acc[c, i]

@@ -48,7 +48,7 @@ from orbitsim._jit import jit, jit_inline
 from orbitsim.chaos.step import megno_after_step
 from orbitsim.forces.tangent import add_tangent_kick_forces
 from orbitsim.integrators.base import chaos_sample_loop, grid_time
-from orbitsim.integrators.wisdom_holman.operators import JACOBI, interaction_kick, record_failure
+from orbitsim.integrators.wisdom_holman.operators import interaction_kick, record_failure
 from orbitsim.physics.coordinates import inertial_to_jacobi, jacobi_to_inertial
 from orbitsim.physics.kepler import (
     KEPLER_NOT_CONVERGED,
@@ -227,7 +227,7 @@ def interaction_kick_tangent(jpos, jvel, djpos, djvel, m, G, eps2, h, weights, m
     :func:`orbitsim.forces.tangent.add_tangent_kick_forces`), their Jacobi transform, then, for
     i >= 2, the derivative of the Jacobi term ``G M_i r'_i / |r'_i|^3`` (added first, as REBOUND).
     """
-    interaction_kick(jpos, jvel, m, G, eps2, h, np.int64(JACOBI), weights, mu, ipos, acc, force)
+    interaction_kick(jpos, jvel, m, G, eps2, h, None, weights, mu, ipos, acc, force)
     jacobi_to_inertial(djpos, weights, dipos)
     tangent_accelerations(ipos, m, G, eps2, dipos, dacc, np.int64(SKIP_PAIR_0_1))
     add_tangent_kick_forces(force, ipos, m, dipos, dacc)
