@@ -39,11 +39,21 @@ def _flatten(obj: Any, out: list[np.ndarray]) -> Any:
         out.append(obj.copy())
         return "a"
     if isinstance(obj, tuple | list):
-        return [_flatten(item, out) for item in obj]
+        return [_flatten(item, out) for _, item in _saved_items(obj)]
     if isinstance(obj, bool | int | float | np.generic):
         out.append(np.asarray(obj))
         return "s"
     raise CheckpointError(f"cannot checkpoint integrator work of type {type(obj).__name__}")
+
+
+def _saved_items(obj: tuple | list) -> list[tuple[str | None, Any]]:
+    """The items of a work tuple that a checkpoint holds, with their field names (None in a plain tuple):
+    all but the fields its class names in ``CHECKPOINT_DERIVED``, which the scheme's ``make_work`` sets from
+    the settings (Wisdom-Holman's ``heliocentric``, the coordinates as a type), so checkpoints keep the
+    layout they had before them."""
+    derived = getattr(type(obj), "CHECKPOINT_DERIVED", ())
+    names = getattr(obj, "_fields", None) or [None] * len(obj)
+    return [(name, item) for name, item in zip(names, obj, strict=True) if name not in derived]
 
 
 def restore_state(sim: Simulation, state: SimState) -> None:
@@ -122,10 +132,15 @@ def _restore(obj: Any, layout: Any, arrays: Any, run_constants: tuple[int, ...] 
     elif layout == "s":
         if not np.array_equal(np.asarray(obj), next(arrays)):
             raise CheckpointError("checkpoint was written with other integrator settings (a constant differs)")
-    elif isinstance(layout, list) and isinstance(obj, tuple | list) and len(obj) == len(layout):
-        for index, (item, sub) in enumerate(zip(obj, layout, strict=True)):
+    elif isinstance(layout, list) and isinstance(obj, tuple | list) and len(_saved_items(obj)) == len(layout):
+        # fields that hold settings the run's code was compiled for: compared, never overwritten
+        compared = getattr(type(obj), "CHECKPOINT_COMPARED", ())
+        for index, ((name, item), sub) in enumerate(zip(_saved_items(obj), layout, strict=True)):
             if index in run_constants and sub == "s":
                 next(arrays)
+            elif name in compared:
+                if not np.array_equal(item, next(arrays)):
+                    raise CheckpointError(f"checkpoint was written with other integrator settings ({name} differs)")
             else:
                 _restore(item, sub, arrays)
     else:

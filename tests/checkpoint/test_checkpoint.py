@@ -137,6 +137,35 @@ def test_work_parts_a_run_does_not_use_are_none_and_checkpoint_as_before() -> No
         restore_state(corrected, state)
 
 
+def test_the_coordinates_as_a_type_leave_the_checkpoint_as_it_was_and_are_checked() -> None:
+    """Wisdom-Holman's ``heliocentric`` (None in Jacobi coordinates, so a Jacobi run compiles no democratic
+    heliocentric code) is made from the settings, not saved: the checkpoint holds one part per other field,
+    in their order, as before the field existed. Each coordinate system resumes its own checkpoint bit for
+    bit, and a checkpoint of the other coordinates is refused in one line rather than restored into code
+    compiled for other coordinates."""
+    sc = scenario(SYSTEM)
+    states = {}
+    for coordinates in ("jacobi", "democratic_heliocentric"):
+        settings = {"coordinates": coordinates}
+        sims = [Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01, settings=settings)
+                for _ in range(2)]
+        assert (sims[0].work.heliocentric is None) == (coordinates == "jacobi")
+        list(sims[0].chunks(np.array([70]), record_positions=False))
+        state = capture_state(sims[0])
+        fields = [name for name in type(sims[0].work)._fields if name != "heliocentric"]
+        assert len(json.loads(state.work_layout)) == len(fields)
+        restore_state(sims[1], state)
+        for sim in sims:
+            list(sim.chunks(np.array([120]), record_positions=False))
+        assert np.array_equal(sims[0].pos, sims[1].pos) and np.array_equal(sims[0].vel, sims[1].vel)
+        states[coordinates] = state
+    for saved, into in (("jacobi", "democratic_heliocentric"), ("democratic_heliocentric", "jacobi")):
+        other = Simulation(sc.masses, sc.positions, sc.velocities, "wisdom_holman", 0.01,
+                           settings={"coordinates": into})
+        with pytest.raises(CheckpointError, match="other integrator settings \\(config differs\\)"):
+            restore_state(other, states[saved])
+
+
 def _leaves(layout: object) -> list[str]:
     """The array and constant leaves of a work layout, in order."""
     return [layout] if isinstance(layout, str) else [leaf for part in layout for leaf in _leaves(part)]

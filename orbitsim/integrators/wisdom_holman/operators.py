@@ -75,8 +75,15 @@ class WHWork(NamedTuple):
     config: np.ndarray  #: int64 (2,): coordinates id, corrector order
     #: None in Jacobi coordinates, else DEMOCRATIC_HELIOCENTRIC: the operators take it as their ``heliocentric``
     #: argument, and Numba removes a branch on an argument that is None before typing, so a Jacobi run
-    #: compiles no democratic heliocentric code (1.5-2 s of a first run when ``config[0]`` chose at run time)
+    #: compiles no democratic heliocentric code (1.5-2 s of a first run when ``config[0]`` chose at run time).
+    #: Set by make_work from the settings, as ``config[0]`` is: not in a checkpoint (CHECKPOINT_DERIVED).
     heliocentric: np.int64 | None
+
+    #: Fields a checkpoint leaves out (:mod:`orbitsim.checkpoint.state`): made from the settings again.
+    CHECKPOINT_DERIVED = ("heliocentric",)
+    #: Fields a checkpoint must match, not overwrite: the settings they hold chose the run's compiled code
+    #: (``heliocentric``), so a checkpoint of other coordinates or another corrector is refused.
+    CHECKPOINT_COMPARED = ("config",)
     kscratch: np.ndarray  #: (KEPLER_SCRATCH_ROWS, N) per-body scratch of the Kepler solver
     kstage: np.ndarray  #: int64 (N,) per-body stage of the Kepler solver
 
