@@ -16,7 +16,7 @@ forces compiles, imports and pays nothing for them.
   they derive from a potential, so they join gravity in every kick of a symplectic scheme (in
   Wisdom-Holman's interaction kick before the Jacobi transform, as REBOUND's WHFast adds
   ``additional_forces``), which stays symplectic;
-* :func:`velocity_operator` and :func:`has_velocity_operator`: the velocity-dependent forces
+* :func:`velocity_operator`: the velocity-dependent forces
   (``gr``, ``migration``) as their own operator ``V(h)`` around a symplectic step,
   ``V(dt/2) S(dt) V(dt/2)`` (REBOUNDx's ``integrate_force``, implicit midpoint): naive
   velocity-dependent kicks give qualitatively wrong long-term answers (Tamayo, Rein, Shi &
@@ -32,9 +32,9 @@ forces compiles, imports and pays nothing for them.
 * :func:`gravity_only`: the context for a kick by gravity alone (Wisdom-Holman's correctors);
 * :class:`ByVelocityForces`: a scheme's entry point as two kernels, the one a call runs chosen in Python
   by the context (:func:`velocity_forces_in`), where the loop with the operator ``V(h)`` and the loop
-  without it differ (Wisdom-Holman). A ``if has_velocity_operator(force)`` inside one kernel would be
-  typed, lowered and optimised in both branches: Numba prunes a branch before typing only, and the
-  overload's constant is known only once the call is typed (2 s of a 16-18 s first Wisdom-Holman run);
+  without it differ (Wisdom-Holman, verlet). One kernel with a branch on a constant of the context's type
+  would type, lower and optimise both loops: Numba prunes a branch before typing only, and an overload's
+  constant is known only once the call is typed (2 s of a 16-18 s first Wisdom-Holman run);
   :func:`no_velocity_operator` makes the plain loop refuse, while it is typed, a context that needs V.
 """
 
@@ -56,7 +56,7 @@ if TYPE_CHECKING:
     from orbitsim.physics.force_context import ForceContext
 
 __all__ = ["ByVelocityForces", "Forces", "add_forces", "add_kick_forces", "add_node_forces", "forced_context",
-           "gravity_only", "has_velocity_operator", "no_velocity_operator", "record_force_energy",
+           "gravity_only", "no_velocity_operator", "record_force_energy",
            "refresh_accelerations", "velocity_forces_in", "velocity_operator"]
 
 
@@ -115,20 +115,15 @@ def velocity_operator(force, pos, vel, m, h):
     raise NotImplementedError("called from jitted code only")
 
 
-def has_velocity_operator(force):
-    """True when the run has velocity-dependent forces (a constant of the context's type)."""
-    raise NotImplementedError("called from jitted code only")
-
-
 def no_velocity_operator(force):
     """Nothing; a typing error where the context holds velocity-dependent forces (a loop without V)."""
     raise NotImplementedError("called from jitted code only")
 
 
 def velocity_forces_in(force: Any) -> bool:
-    """Whether the force context ``force`` holds a velocity-dependent force: :func:`has_velocity_operator`
-    asked from Python, from the records' classes (the records' Numba types are those classes), in
-    microseconds: it runs at every kernel call."""
+    """Whether the force context ``force`` holds a velocity-dependent force (a run that needs the operator
+    V(h)), from the records' classes, as the overloads ask it of their Numba types; in microseconds: it
+    runs at every kernel call."""
     forces = getattr(force, "forces", None)
     if forces is None:
         return False
@@ -207,13 +202,6 @@ def _velocity_operator(force, pos, vel, m, h):
 
     return lambda force, pos, vel, m, h: velocity_operator_of(force.forces.terms, pos, vel, m, force.G, h,
                                                                force.forces.scratch)
-
-
-@overload_inline(has_velocity_operator)
-def _has_velocity_operator(force):
-    if _velocity_dependent(force):
-        return lambda force: True
-    return lambda force: False
 
 
 @overload_inline(no_velocity_operator)
