@@ -132,10 +132,10 @@ def _restore(obj: Any, layout: Any, arrays: Any, run_constants: tuple[int, ...] 
     elif layout == "s":
         if not np.array_equal(np.asarray(obj), next(arrays)):
             raise CheckpointError("checkpoint was written with other integrator settings (a constant differs)")
-    elif isinstance(layout, list) and isinstance(obj, tuple | list) and len(_saved_items(obj)) == len(layout):
+    elif isinstance(layout, list) and isinstance(obj, tuple | list) and len(items := _saved_items(obj)) == len(layout):
         # fields that hold settings the run's code was compiled for: compared, never overwritten
         compared = getattr(type(obj), "CHECKPOINT_COMPARED", ())
-        for index, ((name, item), sub) in enumerate(zip(_saved_items(obj), layout, strict=True)):
+        for index, ((name, item), sub) in enumerate(zip(items, layout, strict=True)):
             if index in run_constants and sub == "s":
                 next(arrays)
             elif name in compared:

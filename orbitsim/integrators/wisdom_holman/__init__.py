@@ -71,7 +71,6 @@ from orbitsim.forces.hooks import ByVelocityForces, no_velocity_operator, veloci
 from orbitsim.integrators.base import Integrator, IntegratorSpec, grid_time, sample_loop
 from orbitsim.integrators.wisdom_holman.correctors import CORRECTOR_STAGES, apply_corrector
 from orbitsim.integrators.wisdom_holman.operators import (
-    DEMOCRATIC_HELIOCENTRIC,
     F_PHASE,
     JACOBI,
     PHASE_LAGGING,
@@ -283,7 +282,7 @@ def _advance_to(target, n_done, m, force, dt, work):
     jpos, jvel = work.jpos, work.jvel
     flags = work.flags
     heliocentric = work.heliocentric  # None in Jacobi coordinates: the jumps compile empty, and never run
-    jumps = work.config[0] == DEMOCRATIC_HELIOCENTRIC
+    jumps = heliocentric is not None
     weights, mu = work.weights, work.mu
     ipos, acc = work.ipos, work.iacc
     ks, kstage = work.kscratch, work.kstage
