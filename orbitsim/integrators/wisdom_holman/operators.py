@@ -73,6 +73,8 @@ class WHWork(NamedTuple):
     stage_b: np.ndarray | None  #: (S,) corrector stages: kick coefficients, in units of dt (None: no corrector)
     flags: np.ndarray  #: int64 (4,): phase, failure status, failing body, failing step (F_* below)
     config: np.ndarray  #: int64 (2,): coordinates id, corrector order
+    kscratch: np.ndarray  #: (KEPLER_SCRATCH_ROWS, N) per-body scratch of the Kepler solver
+    kstage: np.ndarray  #: int64 (N,) per-body stage of the Kepler solver
     #: None in Jacobi coordinates, else DEMOCRATIC_HELIOCENTRIC: the operators take it as their ``heliocentric``
     #: argument, and Numba removes a branch on an argument that is None before typing, so a Jacobi run
     #: compiles no democratic heliocentric code (1.5-2 s of a first run when ``config[0]`` chose at run time).
@@ -84,8 +86,6 @@ class WHWork(NamedTuple):
     #: Fields a checkpoint must match, not overwrite: the settings they hold chose the run's compiled code
     #: (``heliocentric``), so a checkpoint of other coordinates or another corrector is refused.
     CHECKPOINT_COMPARED = ("config",)
-    kscratch: np.ndarray  #: (KEPLER_SCRATCH_ROWS, N) per-body scratch of the Kepler solver
-    kstage: np.ndarray  #: int64 (N,) per-body stage of the Kepler solver
 
 
 #: Phases of ``work.flags[F_PHASE]``: not started (the next call derives the mapping state from
