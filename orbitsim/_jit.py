@@ -25,6 +25,9 @@ Every jitted function in orbitsim is decorated with :func:`jit` (exact IEEE arit
   first-class function values (a jitted function passed as a ``types.FunctionType``), which
   orbitsim never uses; each cost a first run compile time (0.6-0.7 CPU-s of ``mercury_gr``'s).
 * Always-inlined overloads go through :func:`overload_inline` (the same flags, see there).
+* Inlining: :func:`jit_inline` inlines Numba's IR at each call site (typed there again);
+  :func:`jit_llvm_inline` compiles once and lets LLVM inline the machine code, far cheaper to compile
+  for a long function (see there).
 * ``boundscheck=False`` (the default) in production; tests may run with ``NUMBA_DISABLE_JIT=1``.
 * :func:`stop_requested`: the flag the O(N^2) kernels look at between row blocks, so that a stop
   (Ctrl-C, SIGTERM) reaches a kernel that runs for minutes (see its docstring).
@@ -107,7 +110,8 @@ from numba.extending import intrinsic, overload  # noqa: E402
 if numba.config.CACHE_DIR != os.environ["NUMBA_CACHE_DIR"]:
     numba.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
-_COMMON: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True}
+_COMMON: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True,
+                           "forceinline": False}
 
 #: Flags allowed in the force sum only: reassociation vectorises the j-reduction, contraction
 #: fuses its multiply-adds (7% more pairs/s at N = 2048-8192, 12% less per 5-body evaluation).
@@ -122,12 +126,30 @@ def jit(func: F) -> F:
 def jit_inline(func: F) -> F:
     """As :func:`jit`, and inlined into every jitted caller at Numba's IR level.
 
-    For the thin layers of a step (kick, drift, one step, the force dispatch): Numba does not let
-    LLVM inline one jitted function into another, and each call passes every array as a struct and
-    adjusts its reference count. At N = 5 those calls were 40 ns of a 120 ns verlet step (measured,
-    benchmarks/README.md). Never for a force loop: inlined into a caller it stopped vectorising.
+    For the thin layers of a step (kick, drift, one step, the force dispatch): unless a function is
+    :func:`jit_llvm_inline`, LLVM does not inline one jitted function into another, and each call
+    passes every array as a struct and adjusts its reference count. At N = 5 those calls were 40 ns
+    of a 120 ns verlet step (measured, benchmarks/README.md). Never for a force loop: inlined into a
+    caller it stopped vectorising.
     """
     return numba.njit(fastmath=False, inline="always", **_COMMON)(func)
+
+
+def jit_llvm_inline(func: F) -> F:
+    """As :func:`jit`, and inlined into every jitted caller by LLVM (Numba's ``forceinline``: LLVM's
+    ``alwaysinline``), not by Numba.
+
+    :func:`jit_inline` copies the function's Numba IR into each call site, after running Numba's untyped
+    passes on it again there, and the copy is typed again in the caller: for a long function (a whole
+    operator of the lane kernels, itself made of inlined helpers) that work grows faster than the code, and
+    one kernel holding every operator of a step took 61 of a first map's 82 CPU-s to compile. Here the
+    function is typed and compiled once per signature, and LLVM puts its optimised code into each caller,
+    so the machine code runs as if it were inlined. A literal argument is part of the signature, so each
+    distinct constant compiles once more (as each call site would be typed once more by
+    :func:`jit_inline`). ``forceinline`` is set explicitly everywhere else (:data:`_COMMON`): unset, a
+    function compiled from within a ``forceinline`` one would inherit it.
+    """
+    return numba.njit(fastmath=False, **{**_COMMON, "forceinline": True})(func)
 
 
 #: The flags of :func:`jit` for an overload's implementation (Numba's overloads default to no CPython

@@ -30,7 +30,9 @@ synchronisation and energy error at the end are the scalar kernel's own code
 Why one module: the block layout (the row constants) and the loops that index it are one piece, the scalar
 step written lane-wise part for part (drift, kick, elements, stop test), and read best beside each other;
 split, every part would import the layout and none could be read alone. The drift and the kick are called
-from one place each, so that their long code is inlined, and compiled, once. The Kepler solve
+from one place each, so that their long code is inlined, and compiled, once; the kick and the row copies are
+inlined by LLVM (:func:`orbitsim._jit.jit_llvm_inline`), the rest by Numba (inlined by Numba, the kick and its
+copies took 9 of a first run's 34 compile CPU-s, 2.5 now; the step's time is the same). The Kepler solve
 (:func:`kepler_solve_lanes`), the Jacobi chain's steps (:func:`jacobi_up_lanes`, :func:`jacobi_down_lanes`),
 the pair accelerations (:func:`pair_accelerations_lanes`, their row sums started or carried by
 :func:`start_row_sums`), the orbit tracking, the stop test and a lane's stop (:func:`stop_lane`) take their rows
@@ -45,7 +47,7 @@ import math
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline, jit_parallel_exact, stop_requested
 from orbitsim.ensemble.kernels import _energy, elements_ae, finish_system, jacobi_elements_ae
 from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.status import COLLIDED, COMPLETE, DIVERGED, ESCAPED
@@ -92,7 +94,7 @@ def _block_of(block_rows, b):
     return _U(b * (block_rows * LANES))
 
 
-@jit_inline
+@jit_llvm_inline
 def _copy_row(g, dst, src):
     """Copy the LANES numbers at ``src`` to ``dst``: every load before any store, so that LLVM's SLP vectoriser
     makes vector moves of them (it may not reorder a load past a store that could overlap it)."""
@@ -106,7 +108,7 @@ def _copy_row(g, dst, src):
     g[dst + _U(12)], g[dst + _U(13)], g[dst + _U(14)], g[dst + _U(15)] = a12, a13, a14, a15
 
 
-@jit_inline
+@jit_llvm_inline
 def _copy_rows(g, dst_base, dst_row, src_base, src_row, count):
     for c in range(count):
         _copy_row(g, _row(dst_base, dst_row + c), _row(src_base, src_row + c))
@@ -351,7 +353,7 @@ def pair_accelerations_lanes(g, n, G, eps2, width, zero_width, block_rows, pos, 
             g[accz + lane] += g[cz + lane]
 
 
-@jit_inline
+@jit_llvm_inline
 def kick_lanes(g, n, G, eps2, dt, width):
     """:func:`orbitsim.integrators.wisdom_holman.operators.interaction_kick` (Jacobi) of every lane: the
     inertial positions, the pair accelerations, their Jacobi transform and the kick of the live lanes'

@@ -40,7 +40,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_inline, jit_parallel_exact, stop_requested
+from orbitsim._jit import jit, jit_parallel_exact, stop_requested
 from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, deltad_delta_body, megno_update, rescale_power_of_two
 from orbitsim.ensemble.kernels import _energy, jacobi_elements_ae, record_chaos_indicators
 from orbitsim.ensemble.lanes import LANES
@@ -102,7 +102,7 @@ _U = np.uint64
 _NEAR_MARGIN = 1.0 - 1e-9
 
 
-@jit_inline
+@jit
 def _megno_lanes(g, n, G, eps2, dt, t, t_start, n_before, width):
     """megno_after_step of the live lanes: the tangent gravity of every pair at the new state, deltad_delta's
     sums carried body by body, megno_update; marks in NEAR the lanes to test for a rescaling. Returns
