@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline
 from orbitsim.chaos.megno import (
     RESCALE_ABOVE,
     MegnoState,
@@ -103,7 +103,7 @@ def _row(g, row, lane):
     return g[row * LANES + lane]
 
 
-@jit_inline
+@jit_llvm_inline
 def drift_lanes(g, views, mu, dt):
     """Kepler drift by ``dt`` of the live lanes' Jacobi rows (JP, JV) and their tangent rows (DJP, DJV) about
     ``mu``, each with the bits of :func:`kepler_drift_tangent`; ``views`` are the (3, LANES) views of those
@@ -220,7 +220,7 @@ def _stop_lanes(g, failed, s):
             g[STOP_STEP * LANES + lane] = s + 1.0
 
 
-@jit_inline
+@jit_llvm_inline
 def _kick_lanes(g, rec, s, q, m, G, eps2, dt, mu_t):
     """The interaction kick of every lane's test body and of its tangent vector (interaction_kick, then
     interaction_kick_tangent's part for the last body), against step ``s`` of the record."""

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_parallel_exact
+from orbitsim._jit import jit, jit_inline, jit_parallel_exact
 from orbitsim.chaos.megno import MegnoState, lyapunov, megno_value
 from orbitsim.ensemble.kernels import _energy, jacobi_elements_ae
 from orbitsim.ensemble.lanes import (
@@ -130,7 +130,7 @@ def _write_out(g, lane, k, code, n_steps_done, megno_steps, mpos, mvel, rec, row
         out[k, ENERGY_ERROR] = abs((_energy(pos[k], vel[k], m[k], G, rows) - e0) / e0)
 
 
-@jit
+@jit_inline
 def _massive_slot(slot, mpos, mvel, mdpos, mdvel, m, force, dt, weights, mu, scratch, escape_r2, radii,
                   check_collisions, n_steps, rec, block_pos, block_vel, recorded, ok):
     """The massive bodies' next block (:func:`massive_block`, up to ``n_steps`` steps) into record slot ``slot``,
