@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit_inline
+from orbitsim._jit import jit_inline, jit_llvm_inline
 
 #: ODE kinds dispatched by :func:`derivatives` (an integer switch keeps the BS kernel cacheable).
 ODE_NEWTON = 0
@@ -118,7 +118,7 @@ def _add_pair(rows, src, dst, k, l, G, softening2, m_k, m_l, both, ghost_shift):
         rows[dst, 6 * l + 5] += prefact_k * dz
 
 
-@jit_inline
+@jit_llvm_inline
 def encounter_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_bodies_active, interacts,
                           with_jump):
     """dy/dt of TRACE's encounter ODE at ``rows[src]`` into ``rows[dst]`` (first 6 n_bodies entries).
@@ -182,7 +182,7 @@ def newton_derivatives(rows, src, dst, m, G, softening2, bodies, n_bodies, n_act
             _add_pair(rows, src, dst, k, l, G, softening2, m[bodies[k]], m[bodies[l]], False, True)
 
 
-@jit_inline
+@jit_llvm_inline
 def derivatives(kind, rows, src, dst, m, G, softening2, bodies, n_bodies, n_bodies_active, interacts,
                 with_jump):
     """dy/dt of the ODE ``kind`` (:data:`ODE_NEWTON` or :data:`ODE_ENCOUNTER`) from row src to dst."""

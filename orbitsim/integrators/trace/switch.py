@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit_inline
+from orbitsim._jit import jit_inline, jit_llvm_inline
 
 #: ``peri_mode`` ids (REBOUND's ``REB_INTEGRATOR_TRACE_PERIMODE_*``).
 PARTIAL_BS = 0
@@ -169,7 +169,7 @@ def _flag_pairs(pos, vel, m, dt, n_active, r_crit_hill, interacts, enc, state, h
     return new
 
 
-@jit_inline
+@jit_llvm_inline
 def pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc,
                    state, hill6, star_radius):
     """Set the encounter flags at the start of a step (REBOUND ``pre_ts_check``); ``hill6`` (N,)
@@ -203,7 +203,7 @@ def pre_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, per
         enc[1, i] = enc[0, i]
 
 
-@jit_inline
+@jit_llvm_inline
 def post_step_check(pos, vel, m, G, dt, n_active, r_crit_hill, peri_crit_eta, peri_mode, interacts, enc,
                     state, hill6, star_radius):
     """Add the flags of the end-of-step state; True if any is new, i.e. the step must be redone.
