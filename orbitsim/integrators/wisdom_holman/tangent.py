@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline
 from orbitsim.chaos.step import megno_after_step
 from orbitsim.forces.tangent import add_tangent_kick_forces
 from orbitsim.integrators.base import chaos_sample_loop, grid_time
@@ -202,7 +202,7 @@ def kepler_drift_tangent(pos, vel, dpos, dvel, i, mu, dt):
     return KEPLER_OK
 
 
-@jit_inline
+@jit_llvm_inline
 def kepler_step_tangent(jpos, jvel, djpos, djvel, mu, h):
     """Kepler drift by ``h`` of bodies 1..N-1 and their tangent vectors, then the centre of mass
     (column 0) and its variation move with their constant velocities. Returns ``(status, body)``."""
@@ -260,7 +260,7 @@ def jacobi_term_tangent_kick(jpos, djpos, djvel, dacc, mu, h):
         djvel[2, i] += h * dacc[2, i]
 
 
-@jit_inline
+@jit_llvm_inline
 def tangent_step(pos, vel, dpos, dvel, m, G, eps2, dt, weights, mu, jpos, jvel, djpos, djvel, ipos, acc, dipos, dacc,
                  force):
     """One Wisdom-Holman step of the inertial state and its tangent vector, in place (safe mode:
