@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline
 
 #: Fixed-point iterations for v~ (REBOUNDx's default ``max_iterations``).
 MAX_ITERATIONS = 10
@@ -40,7 +40,7 @@ GR_WORK_ROWS = 20
 _EPS = np.finfo(np.float64).eps
 
 
-@jit_inline
+@jit_llvm_inline
 def gr_potential_accelerations(pos, m, G, src, c, acc):
     """acc (3, N) += the Nobili-Roxburgh acceleration of every body about ``src``, and its reaction."""
     C2 = c * c
@@ -63,7 +63,7 @@ def gr_potential_accelerations(pos, m, G, src, c, acc):
         acc[2, src] += ratio * prefac * dz
 
 
-@jit_inline
+@jit_llvm_inline
 def gr_potential_tangent(pos, m, G, src, c, dpos, dacc):
     """dacc (3, N) += the derivative of :func:`gr_potential_accelerations` at ``pos`` along ``dpos``.
 

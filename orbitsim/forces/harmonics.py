@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbitsim._jit import jit, jit_inline
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline
 
 
 @jit_inline
@@ -111,7 +111,7 @@ def harmonics_accelerations(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, acc):
         add_with_reaction(acc, j, src, m[j] / ms, au, av, aw, ux, uy, uz, vx, vy, vz, wx, wy, wz)
 
 
-@jit_inline
+@jit_llvm_inline
 def harmonics_tangent(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, dpos, dacc):
     """dacc (3, N) += the derivative of :func:`harmonics_accelerations` at ``pos`` along ``dpos``.
 
