@@ -71,10 +71,10 @@ def add_with_reaction(out, j, src, fac, au, av, aw, ux, uy, uz, vx, vy, vz, wx, 
 def harmonics_accelerations(pos, m, G, src, J2, J4, R_eq, sx, sy, sz, acc):
     """acc (3, N) += the J2/J4 accelerations of every body about body ``src``, and its reaction.
 
-    Called, not inlined: the force hooks reach it through four levels of always-inlined overloads
-    (:mod:`orbitsim.forces.kernels`), and Numba types such an overload's body again at every look-up,
-    so an inlined body was copied and typed 74 times in a first ``j2_satellite`` run (CPU 40 s, 18 s
-    called); a warm step runs at the same speed (6 us an IAS15 step, within noise)."""
+    Called, not inlined by Numba: the force hooks reach it through four levels of overloads
+    (:mod:`orbitsim.forces.kernels`), and when Numba inlined those it typed an inlined body again at
+    every look-up, so this one was copied and typed 74 times in a first ``j2_satellite`` run (CPU 40 s,
+    18 s called); a warm step runs at the same speed (6 us an IAS15 step, within noise)."""
     ux, uy, uz, vx, vy, vz, wx, wy, wz = spin_basis(sx, sy, sz)
     n = pos.shape[1]
     ms = m[src]
