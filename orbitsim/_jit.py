@@ -344,7 +344,8 @@ def watch_compiles(watch: CompileWatch) -> Any:
 # -- CUDA (numba-cuda), for orbitsim.gpu only ---------------------------------------------------------
 # numba-cuda is imported inside these decorators, never here at module level: the CPU paths must not
 # load it. Callers have passed orbitsim.gpu.device.require_cuda() first (the one gate, and numpy's
-# row_stack shim). CUDA kernels compile on their first launch and are not cached on disk.
+# row_stack shim). CUDA kernels compile on their first launch and are cached on disk beside the CPU's
+# (CACHE_DIR; numba-cuda keys each entry by signature, closure values and compute capability).
 
 
 def cuda_kernel(func: F) -> F:
@@ -352,7 +353,7 @@ def cuda_kernel(func: F) -> F:
     fused multiply-adds, so results are not the CPU's bits (docs/gpu.md; maps: docs/map.md, "On a GPU")."""
     from numba import cuda  # noqa: PLC0415 - lazy: loads numba-cuda, only for the GPU
 
-    return cuda.jit(fastmath=False)(func)
+    return cuda.jit(fastmath=False, cache=True)(func)
 
 
 def cuda_device(func: F) -> F:

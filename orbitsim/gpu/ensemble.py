@@ -2,8 +2,8 @@
 
 :func:`run_ensemble_gpu` takes the arguments of :func:`orbitsim.ensemble.run_ensemble` (plus ``scheme``),
 checks them with the same :func:`~orbitsim.ensemble.run.prepare_systems`, lays them out with the system
-index last, copies them to the device once, launches one thread per system
-(:mod:`orbitsim.gpu.ensemble_kernels`) and copies the results back once: an
+index last, copies them to the device once (:func:`upload_ensemble`, a :class:`DeviceEnsemble`), launches
+one thread per system (:mod:`orbitsim.gpu.ensemble_kernels`) and copies the results back once: an
 :class:`~orbitsim.ensemble.run.EnsembleResult` with the CPU ensemble's statuses and indicator columns.
 
 Schemes: ``wisdom_holman`` (Jacobi coordinates, no corrector) with its tangent map, MEGNO and the mLCE,
@@ -14,12 +14,14 @@ NaN).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-from orbitsim.ensemble.run import EnsembleResult, check_variation, prepare_systems
+from orbitsim.ensemble.run import EnsembleResult, EnsembleSystems, check_variation, prepare_systems
 from orbitsim.ensemble.status import N_COLUMNS
 
-__all__ = ["GPU_SCHEMES", "run_ensemble_gpu"]
+__all__ = ["GPU_SCHEMES", "DeviceEnsemble", "run_ensemble_gpu", "upload_ensemble"]
 
 #: The schemes the GPU ensemble runs.
 GPU_SCHEMES = ("wisdom_holman", "leapfrog", "verlet")
@@ -34,12 +36,62 @@ def _host_layout(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.moveaxis(a, -1, 0))
 
 
-def run_ensemble_gpu(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float, dt: float,
-                     n_steps: int, t_start: float = 0.0, escape_distance: float = np.inf,
-                     radii: np.ndarray | None = None, watch: int = 1,
-                     variation: tuple[np.ndarray, np.ndarray] | None = None,
-                     scheme: str = "wisdom_holman") -> EnsembleResult:
-    """Run K systems of N bodies on the GPU, one thread per system.
+class DeviceEnsemble:
+    """K checked systems on the device (:func:`upload_ensemble`): :meth:`launch` queues their kernel, one thread
+    per system, and :meth:`result` waits for it and copies the results back. The kernel leaves each system's
+    state at its stop in the device arrays, so a second launch goes on from there (benchmarks time
+    :meth:`launch` alone, the copies apart)."""
+
+    def __init__(self, cuda: Any, systems: EnsembleSystems, tangent: tuple[np.ndarray, np.ndarray] | None,
+                 scheme: str, G: float, dt: float, t_start: float, n_steps: int, escape_distance: float,
+                 watch: int) -> None:
+        from orbitsim.gpu import ensemble_kernels  # noqa: PLC0415 - lazy: loads numba-cuda
+
+        self.cuda = cuda
+        self._kernels = ensemble_kernels  # its THREADS_PER_BLOCK read at each launch
+        self.k, self.n = systems.masses.shape
+        self.systems = systems
+        if not self.k:  # nothing to copy or launch
+            return
+        self.status = cuda.to_device(np.zeros(self.k, dtype=np.int64))
+        self.steps = cuda.to_device(np.zeros(self.k, dtype=np.int64))
+        self.out = cuda.to_device(np.zeros((N_COLUMNS, self.k)))
+        self.pos, self.vel, m, weights, mu, radii = (
+            cuda.to_device(_device_layout(value)) for value in
+            (systems.pos, systems.vel, systems.masses, systems.weights, systems.mu, systems.radii))
+        scalars = (float(G), float(dt), float(t_start), np.int64(n_steps), float(escape_distance) ** 2,
+                   bool(systems.check_collisions))
+        results = (self.status, self.steps, self.out)
+        if tangent is not None:
+            dpos, dvel = (cuda.to_device(_device_layout(value)) for value in tangent)
+            self._kernel = ensemble_kernels.wh_variational_kernel(self.n, int(watch))
+            self._args = (self.pos, self.vel, dpos, dvel, m, weights, mu, radii, *scalars, *results)
+        else:
+            self._kernel = ensemble_kernels.fixed_step_kernel(self.n, int(watch), scheme)
+            self._args = (self.pos, self.vel, m, weights, mu, radii, *scalars, *results)
+
+    def launch(self) -> None:
+        """Queue the kernel over every system (asynchronous; compiled at the first launch of its kind)."""
+        if self.k:
+            per_block = self._kernels.THREADS_PER_BLOCK
+            self._kernel[-(-self.k // per_block), per_block](*self._args)
+
+    def result(self) -> EnsembleResult:
+        """Wait for the kernel; the statuses, steps, indicators and states at the stops, copied back."""
+        if not self.k:
+            return EnsembleResult(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64),
+                                  np.zeros((0, N_COLUMNS)), self.systems.pos, self.systems.vel)
+        self.cuda.synchronize()
+        return EnsembleResult(self.status.copy_to_host(), self.steps.copy_to_host(), self.out.copy_to_host().T.copy(),
+                              _host_layout(self.pos.copy_to_host()), _host_layout(self.vel.copy_to_host()))
+
+
+def upload_ensemble(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray, *, G: float, dt: float,
+                    n_steps: int, t_start: float = 0.0, escape_distance: float = np.inf,
+                    radii: np.ndarray | None = None, watch: int = 1,
+                    variation: tuple[np.ndarray, np.ndarray] | None = None,
+                    scheme: str = "wisdom_holman") -> DeviceEnsemble:
+    """Check K systems of N bodies as the CPU ensemble does and copy them to the GPU, ready to launch.
 
     Parameters as :func:`orbitsim.ensemble.run_ensemble`; ``scheme`` is one of :data:`GPU_SCHEMES`.
     ``wisdom_holman`` needs ``variation`` (its kernel carries the tangent vector: MEGNO and the Lyapunov
@@ -64,30 +116,13 @@ def run_ensemble_gpu(masses: np.ndarray, positions: np.ndarray, velocities: np.n
     tangent = None if variation is None else check_variation(variation, k, n)
     from orbitsim.gpu.device import require_cuda  # noqa: PLC0415 - lazy: loads numba-cuda
 
-    cuda = require_cuda()
-    from orbitsim.gpu import ensemble_kernels  # noqa: PLC0415 - lazy: loads numba-cuda
+    return DeviceEnsemble(require_cuda(), systems, tangent, scheme, G, dt, t_start, n_steps, escape_distance, watch)
 
-    status = np.zeros(k, dtype=np.int64)
-    steps = np.zeros(k, dtype=np.int64)
-    out = np.zeros((N_COLUMNS, k))
-    if k == 0:
-        return EnsembleResult(status, steps, out.T.copy(), systems.pos, systems.vel)
-    d = {name: cuda.to_device(_device_layout(value)) for name, value in
-         (("pos", systems.pos), ("vel", systems.vel), ("m", systems.masses), ("weights", systems.weights),
-          ("mu", systems.mu), ("radii", systems.radii))}
-    d_status, d_steps, d_out = cuda.to_device(status), cuda.to_device(steps), cuda.to_device(out)
-    scalars = (float(G), float(dt), float(t_start), np.int64(n_steps), float(escape_distance) ** 2,
-               bool(systems.check_collisions))
-    per_block = ensemble_kernels.THREADS_PER_BLOCK
-    blocks = -(-k // per_block)
-    if tangent is not None:
-        d_dpos, d_dvel = cuda.to_device(_device_layout(tangent[0])), cuda.to_device(_device_layout(tangent[1]))
-        ensemble_kernels.wh_variational_kernel(n, int(watch))[blocks, per_block](
-            d["pos"], d["vel"], d_dpos, d_dvel, d["m"], d["weights"], d["mu"], d["radii"], *scalars, d_status,
-            d_steps, d_out)
-    else:
-        ensemble_kernels.fixed_step_kernel(n, int(watch), scheme)[blocks, per_block](
-            d["pos"], d["vel"], d["m"], d["weights"], d["mu"], d["radii"], *scalars, d_status, d_steps, d_out)
-    cuda.synchronize()
-    return EnsembleResult(d_status.copy_to_host(), d_steps.copy_to_host(), d_out.copy_to_host().T.copy(),
-                          _host_layout(d["pos"].copy_to_host()), _host_layout(d["vel"].copy_to_host()))
+
+def run_ensemble_gpu(masses: np.ndarray, positions: np.ndarray, velocities: np.ndarray,
+                     **options: Any) -> EnsembleResult:
+    """Run K systems of N bodies on the GPU, one thread per system: :func:`upload_ensemble` (its arguments
+    and errors), launch, and the results copied back."""
+    ensemble = upload_ensemble(masses, positions, velocities, **options)
+    ensemble.launch()
+    return ensemble.result()

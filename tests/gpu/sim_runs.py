@@ -131,8 +131,10 @@ def test_gpu_check_quick_prints_one_json_line_per_figure(tmp_path: Path) -> None
     ensemble = [r["figure"] for r in written if r["section"] in ("ensemble", "js_map")]
     assert ensemble == ["wh_megno_positions_vs_cpu_rel", "wh_megno_velocities_vs_cpu_rel", "wh_statuses_equal_cpu",
                         "wh_megno_vs_cpu_rel", "wh_lyapunov_vs_cpu_rel", "leapfrog_positions_vs_cpu_rel",
-                        "leapfrog_5body_system_steps_per_s", "wh_megno_4body_system_steps_per_s", "js_map_4x4_s",
-                        "js_map_8x8_s", "js_map_1000x1000_estimate_s"]
+                        "leapfrog_5body_system_steps_per_s", "leapfrog_5body_with_copies_system_steps_per_s",
+                        "wh_megno_4body_system_steps_per_s", "wh_megno_4body_with_copies_system_steps_per_s",
+                        "js_map_4x4_s", "js_map_4x4_with_copies_s", "js_map_8x8_s", "js_map_8x8_with_copies_s",
+                        "js_map_1000x1000_estimate_s"]
     correctness = [r for r in written if r["section"] == "ensemble" and r["figure"].endswith(("_rel", "_cpu"))]
     assert len(correctness) == 6 and all(r["ok"] for r in correctness)  # the correctness figures meet 1e-13
     assert all(r["value"] > 0 for r in written if r["section"] in ("ensemble", "js_map"))

@@ -29,9 +29,10 @@ from orbitsim.ensemble.status import (
     LYAPUNOV,
     MAX_E,
     MEGNO,
+    N_COLUMNS,
     SURVIVAL_TIME,
 )
-from orbitsim.gpu.ensemble import run_ensemble_gpu
+from orbitsim.gpu.ensemble import run_ensemble_gpu, upload_ensemble
 from orbitsim.scenario import load_scenario
 
 K = 16
@@ -180,3 +181,31 @@ def test_zero_steps_and_bad_input():
     assert none.indicators[:, ENERGY_ERROR].tolist() == [0.0, 0.0]
     with pytest.raises(ValueError, match="dt must be finite"):
         run_ensemble_gpu(masses, pos, vel, G=1.0, dt=-1.0, n_steps=3, variation=_variation(2))
+
+
+def test_a_second_launch_goes_on_from_where_the_first_stopped():
+    """upload_ensemble copies the systems once; each launch continues from the device's state (benchmarks
+    time launches alone): two launches of 20 leapfrog steps are the bits of one of 40, and the copy back is
+    run_ensemble_gpu's."""
+    masses, pos, vel = _giants(4)
+    common = {"G": 1.0, "dt": DT, "scheme": "leapfrog"}
+    ensemble = upload_ensemble(masses, pos, vel, n_steps=20, **common)
+    ensemble.launch()
+    assert _results_equal(ensemble.result(), run_ensemble_gpu(masses, pos, vel, n_steps=20, **common))
+    ensemble.launch()
+    twice = ensemble.result()
+    once = run_ensemble_gpu(masses, pos, vel, n_steps=40, **common)
+    assert np.array_equal(twice.pos, once.pos) and np.array_equal(twice.vel, once.vel)
+    assert twice.steps.tolist() == [20] * 4 and once.steps.tolist() == [40] * 4
+
+
+def test_an_empty_ensemble_launches_nothing():
+    masses, pos, vel = _giants(1)
+    empty = upload_ensemble(masses[:0], pos[:0], vel[:0], G=1.0, dt=DT, n_steps=5, scheme="verlet")
+    empty.launch()
+    result = empty.result()
+    assert result.status.shape == (0,) and result.indicators.shape == (0, N_COLUMNS) and result.pos.shape == (0, 3, 4)
+
+
+def _results_equal(a, b) -> bool:
+    return all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a, b, strict=True))
