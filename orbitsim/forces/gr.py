@@ -28,6 +28,8 @@ is REBOUNDx's chain, operation for operation.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from orbitsim._jit import jit, jit_inline, jit_llvm_inline
@@ -35,9 +37,21 @@ from orbitsim._jit import jit, jit_inline, jit_llvm_inline
 #: Fixed-point iterations for v~ (REBOUNDx's default ``max_iterations``).
 MAX_ITERATIONS = 10
 #: Rows of ``gr``'s work: Newtonian accelerations (0-2), Jacobi x, v, a (3-11), Jacobi 1PN
-#: accelerations (12-14), and per Jacobi coordinate r, mu / r, 3 mu / r, r^3, 3 mu / r^3 (15-19).
-GR_WORK_ROWS = 20
+#: accelerations (12-14), per Jacobi coordinate r, mu / r, 3 mu / r, r^3, 3 mu / r^3 (15-19), and
+#: the Jacobi chain's mass factors (20-23, :func:`_chain_factors`), v~ (24-26), |v~|^2, A and a
+#: converged flag (27-29; :func:`_solve_vtilde`).
+GR_WORK_ROWS = 30
+#: Rows of the chain's mass factors in ``gr``'s work: at chain place k >= 1, 1 / eta and eta_k / eta
+#: going up the chain (column 0: the total mass), 1 / eta and the eta left going down (column 0: 1 / m
+#: of the chain's first body), each computed as the transforms compute them.
+_UP_EI, _UP_PME, _DOWN_EI, _DOWN_ETA = 20, 21, 22, 23
+#: Rows of v~ (3), |v~|^2, A and 1.0 once converged, of every Jacobi coordinate (:func:`_solve_vtilde`).
+_W, _W2, _A, _DONE = 24, 27, 28, 29
 _EPS = np.finfo(np.float64).eps
+#: Rows of ``gr``'s operator cache (:func:`gr_prepare_once`): a work block of GR_WORK_ROWS that
+#: :func:`gr_prepare` filled, then the positions (3 rows) and masses (1 row) it was filled for, and a
+#: key row: the source + 1 (0: empty) and G.
+GR_CACHE_ROWS = GR_WORK_ROWS + 5
 
 
 @jit_llvm_inline
@@ -138,20 +152,27 @@ def _newtonian_in_chain(pos, m, G, src, an):
             an[c, a] = 0.0
     for a in range(n):
         i = chain(a, src)
+        # body a's sums in registers over its pairs (the same operations in the same order): in memory,
+        # every pair's update waited on the last one's store
+        ax, ay, az = an[0, a], an[1, a], an[2, a]
+        xi, yi, zi = pos[0, i], pos[1, i], pos[2, i]
         for b in range(a + 1, n):
             j = chain(b, src)
-            dx = pos[0, i] - pos[0, j]
-            dy = pos[1, i] - pos[1, j]
-            dz = pos[2, i] - pos[2, j]
+            dx = xi - pos[0, j]
+            dy = yi - pos[1, j]
+            dz = zi - pos[2, j]
             r2 = dx * dx + dy * dy + dz * dz
             r = np.sqrt(r2)
             prefac = G / (r2 * r)
-            an[0, a] -= prefac * m[j] * dx
-            an[1, a] -= prefac * m[j] * dy
-            an[2, a] -= prefac * m[j] * dz
+            ax -= prefac * m[j] * dx
+            ay -= prefac * m[j] * dy
+            az -= prefac * m[j] * dz
             an[0, b] += prefac * m[i] * dx
             an[1, b] += prefac * m[i] * dy
             an[2, b] += prefac * m[i] * dz
+        an[0, a] = ax
+        an[1, a] = ay
+        an[2, a] = az
 
 
 @jit_inline
@@ -180,44 +201,96 @@ def _to_jacobi_positions(pos, an, m, src, jac):
 
 
 @jit_inline
-def _to_jacobi_velocities(vel, m, src, jac):
-    """jac rows 3-5 = Jacobi v of chain places 1..N-1 (as :func:`_to_jacobi_positions`); returns
-    the total mass."""
-    n = vel.shape[1]
-    i0 = chain(0, src)
-    eta = m[i0]
-    for c in range(3):
-        jac[3 + c, 0] = eta * vel[c, i0]
+def _chain_factors(m, src, work):
+    """The Jacobi chain's mass factors (rows :data:`_UP_EI` .. :data:`_DOWN_ETA`): the divisions and
+    products of the velocity transforms, which depend on the masses alone, computed once per
+    :func:`gr_prepare` in the order those transforms compute them (the same bits), not at each velocity."""
+    n = m.shape[0]
+    eta = m[chain(0, src)]
     for k in range(1, n):
         i = chain(k, src)
         ei = 1.0 / eta
         eta += m[i]
-        pme = eta * ei
-        for c in range(3):
-            jac[3 + c, k] = vel[c, i] - jac[3 + c, 0] * ei
-        for c in range(3):
-            jac[3 + c, 0] = jac[3 + c, 0] * pme + m[i] * jac[3 + c, k]
-    return eta
+        work[_UP_EI, k] = ei
+        work[_UP_PME, k] = eta * ei
+    work[_UP_EI, 0] = eta
+    for k in range(n - 1, 0, -1):
+        work[_DOWN_EI, k] = 1.0 / eta
+        eta -= m[chain(k, src)]
+        work[_DOWN_ETA, k] = eta
+    work[_DOWN_EI, 0] = 1.0 / eta
 
 
 @jit_inline
-def _solve_vtilde(vx, vy, vz, three_mu_r, C2):
-    """v~ = v / (1 - A(v~)) by fixed-point iteration, REBOUNDx's stopping rule; returns v~, A.
-    ``three_mu_r``: 3 mu / r, computed as ``3.0 * mu / r``."""
-    wx, wy, wz = vx, vy, vz
-    w2 = wx * wx + wy * wy + wz * wz
-    A = (0.5 * w2 + three_mu_r) / C2
+def _to_jacobi_velocities(vel, m, src, jac, work):
+    """jac rows 3-5 = Jacobi v of chain places 1..N-1 (as :func:`_to_jacobi_positions`, with the mass
+    factors of :func:`_chain_factors` in ``work``)."""
+    n = vel.shape[1]
+    i0 = chain(0, src)
+    eta = m[i0]
+    # the running sums in registers (row 0 written at the end): the same operations in the same order
+    sx = eta * vel[0, i0]
+    sy = eta * vel[1, i0]
+    sz = eta * vel[2, i0]
+    for k in range(1, n):
+        i = chain(k, src)
+        ei = work[_UP_EI, k]
+        pme = work[_UP_PME, k]
+        vx = vel[0, i] - sx * ei
+        vy = vel[1, i] - sy * ei
+        vz = vel[2, i] - sz * ei
+        jac[3, k] = vx
+        jac[4, k] = vy
+        jac[5, k] = vz
+        sx = sx * pme + m[i] * vx
+        sy = sy * pme + m[i] * vy
+        sz = sz * pme + m[i] * vz
+    jac[3, 0] = sx
+    jac[4, 0] = sy
+    jac[5, 0] = sz
+
+
+@jit_inline
+def _solve_vtilde(jac, work, C2):
+    """v~ = v / (1 - A(v~)) of every Jacobi coordinate (chain places 1..N-1, v from ``jac`` rows 3-5)
+    by fixed-point iteration with REBOUNDx's stopping rule, into ``work`` rows :data:`_W` .. :data:`_A`
+    (3 mu / r from row 17). Each coordinate's operations are those of solving it alone, in the same
+    order (the same bits); the coordinates advance together, one iteration of each in turn, so that
+    their divisions overlap: solved one after another, each iteration's chain of two divisions
+    waited on the last, and that latency was most of a ``gr`` evaluation."""
+    n = jac.shape[1]
+    for k in range(1, n):
+        vx, vy, vz = jac[3, k], jac[4, k], jac[5, k]
+        w2 = vx * vx + vy * vy + vz * vz
+        work[_W, k] = vx
+        work[_W + 1, k] = vy
+        work[_W + 2, k] = vz
+        work[_W2, k] = w2
+        work[_A, k] = (0.5 * w2 + work[17, k]) / C2
+        work[_DONE, k] = 0.0
     for _ in range(MAX_ITERATIONS):
-        ox, oy, oz = wx, wy, wz
-        wx = vx / (1.0 - A)
-        wy = vy / (1.0 - A)
-        wz = vz / (1.0 - A)
-        w2 = wx * wx + wy * wy + wz * wz
-        A = (0.5 * w2 + three_mu_r) / C2
-        dx, dy, dz = wx - ox, wy - oy, wz - oz
-        if (dx * dx + dy * dy + dz * dz) / w2 < _EPS * _EPS:
+        active = False
+        for k in range(1, n):
+            if work[_DONE, k] != 0.0:
+                continue
+            A = work[_A, k]
+            ox, oy, oz = work[_W, k], work[_W + 1, k], work[_W + 2, k]
+            wx = jac[3, k] / (1.0 - A)
+            wy = jac[4, k] / (1.0 - A)
+            wz = jac[5, k] / (1.0 - A)
+            w2 = wx * wx + wy * wy + wz * wz
+            work[_W, k] = wx
+            work[_W + 1, k] = wy
+            work[_W + 2, k] = wz
+            work[_W2, k] = w2
+            work[_A, k] = (0.5 * w2 + work[17, k]) / C2
+            dx, dy, dz = wx - ox, wy - oy, wz - oz
+            if (dx * dx + dy * dy + dz * dz) / w2 < _EPS * _EPS:
+                work[_DONE, k] = 1.0
+            else:
+                active = True
+        if not active:
             break
-    return wx, wy, wz, w2, A
 
 
 @jit
@@ -232,6 +305,7 @@ def gr_prepare(pos, m, G, src, work):
     _newtonian_in_chain(pos, m, G, src, work[0:3])
     jac = work[3:12]
     _to_jacobi_positions(pos, work[0:3], m, src, jac)
+    _chain_factors(m, src, work)
     mu = G * m[src]
     for k in range(1, pos.shape[1]):
         x, y, z = jac[0, k], jac[1, k], jac[2, k]
@@ -244,6 +318,40 @@ def gr_prepare(pos, m, G, src, work):
         work[19, k] = 3.0 * mu / ri3
 
 
+@jit_inline
+def _same_bits(a, b):
+    """a and b are the same float64, -0.0 and 0.0 apart (``==`` alone takes them for equal)."""
+    return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
+
+
+@jit_inline
+def gr_prepare_once(pos, m, G, src, cache):
+    """The :func:`gr_prepare`'d work block at ``pos`` (``cache[:GR_WORK_ROWS]``; ``cache`` has
+    :data:`GR_CACHE_ROWS` rows), prepared only if the block does not already hold these positions',
+    masses', G's and source's: the same bits as preparing it. An operator at the end of one step and the
+    next step's first operator see the same positions, so a step prepares once, not twice."""
+    n = pos.shape[1]
+    work = cache[:GR_WORK_ROWS]
+    key = GR_WORK_ROWS + 4
+    same = cache[key, 0] == src + 1.0 and cache[key, 1] == G
+    if same:
+        for i in range(n):
+            if not (_same_bits(cache[GR_WORK_ROWS + 3, i], m[i]) and _same_bits(cache[GR_WORK_ROWS, i], pos[0, i])
+                    and _same_bits(cache[GR_WORK_ROWS + 1, i], pos[1, i])
+                    and _same_bits(cache[GR_WORK_ROWS + 2, i], pos[2, i])):
+                same = False
+                break
+    if not same:
+        gr_prepare(pos, m, G, src, work)
+        for i in range(n):
+            for c in range(3):
+                cache[GR_WORK_ROWS + c, i] = pos[c, i]
+            cache[GR_WORK_ROWS + 3, i] = m[i]
+        cache[key, 0] = src + 1.0
+        cache[key, 1] = G
+    return work
+
+
 @jit
 def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
     """acc (3, N) += the 1PN acceleration at velocities ``vel``, the positions' part taken from
@@ -253,10 +361,11 @@ def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
     mu = G * m[src]
     jac = work[3:12]
     apn = work[12:15]
-    eta = _to_jacobi_velocities(vel, m, src, jac)
+    _to_jacobi_velocities(vel, m, src, jac, work)
+    _solve_vtilde(jac, work, C2)
     for k in range(1, n):
         x, y, z = jac[0, k], jac[1, k], jac[2, k]
-        wx, wy, wz, w2, A = _solve_vtilde(jac[3, k], jac[4, k], jac[5, k], work[17, k], C2)
+        wx, wy, wz, w2, A = work[_W, k], work[_W + 1, k], work[_W + 2, k], work[_W2, k], work[_A, k]
         B = (work[16, k] - 1.5 * w2) * mu / work[18, k] / C2
         rdotrdot = x * jac[3, k] + y * jac[4, k] + z * jac[5, k]
         vdx = jac[6, k] + B * x
@@ -267,25 +376,27 @@ def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
         apn[0, k] = B * (1.0 - A) * x - A * jac[6, k] - D * wx
         apn[1, k] = B * (1.0 - A) * y - A * jac[7, k] - D * wy
         apn[2, k] = B * (1.0 - A) * z - A * jac[8, k] - D * wz
-    # Back to inertial accelerations (REBOUND's jacobi_to_inertial_acc; the centre of mass's is 0).
+    # Back to inertial accelerations (REBOUND's jacobi_to_inertial_acc; the centre of mass's is 0), the
+    # mass factors from _chain_factors.
+    eta = work[_UP_EI, 0]
     sx = 0.0 * eta
     sy = 0.0 * eta
     sz = 0.0 * eta
     for k in range(n - 1, 0, -1):
         i = chain(k, src)
-        ei = 1.0 / eta
+        ei = work[_DOWN_EI, k]
         sx = (sx - m[i] * apn[0, k]) * ei
         sy = (sy - m[i] * apn[1, k]) * ei
         sz = (sz - m[i] * apn[2, k]) * ei
         acc[0, i] += apn[0, k] + sx
         acc[1, i] += apn[1, k] + sy
         acc[2, i] += apn[2, k] + sz
-        eta -= m[i]
+        eta = work[_DOWN_ETA, k]
         sx *= eta
         sy *= eta
         sz *= eta
     i0 = chain(0, src)
-    mi = 1.0 / eta
+    mi = work[_DOWN_EI, 0]
     acc[0, i0] += sx * mi
     acc[1, i0] += sy * mi
     acc[2, i0] += sz * mi

@@ -28,8 +28,9 @@ from __future__ import annotations
 import numpy as np
 from numba import types
 
-from orbitsim._jit import jit, jit_inline, overload_inline
+from orbitsim._jit import jit, overload_inline
 from orbitsim.forces.gr import (
+    GR_CACHE_ROWS,
     GR_WORK_ROWS,
     MAX_ITERATIONS,
     gr_accelerations,
@@ -37,7 +38,7 @@ from orbitsim.forces.gr import (
     gr_energy,
     gr_potential_accelerations,
     gr_potential_energy,
-    gr_prepare,
+    gr_prepare_once,
 )
 from orbitsim.forces.gr_full import WORK_ROWS, gr_full_accelerations, gr_full_energy
 from orbitsim.forces.harmonics import harmonics_accelerations, harmonics_potential
@@ -47,11 +48,14 @@ from orbitsim.forces.terms import VELOCITY_TERMS, GRFullTerm, GRPotentialTerm, G
 __all__ = ["SCRATCH_ROWS", "add_position_forces", "add_velocity_forces", "force_energy", "has_velocity_terms",
            "make_force_scratch", "velocity_operator"]
 
-#: Rows of the operator's own state: v at the start, the latest and the previous estimate of v at
-#: the end, the midpoint v, the acceleration there (3 rows each).
-_OP_ROWS = 15
-#: Rows of the scratch: the operator's, then the force's work rows (gr needs 20, gr_full 20).
-SCRATCH_ROWS = _OP_ROWS + max(GR_WORK_ROWS, WORK_ROWS)
+#: Rows of the operator's own state: the latest estimate of v at the end, the midpoint v, the
+#: acceleration there (3 rows each).
+_OP_ROWS = 9
+#: First row of gr's operator cache (:func:`~orbitsim.forces.gr.gr_prepare_once`), after the operator's rows
+#: and the force's work rows (gr needs 20, gr_full 20).
+_GR_CACHE = _OP_ROWS + max(GR_WORK_ROWS, WORK_ROWS)
+#: Rows of the scratch: the operator's, the forces' work rows, gr's operator cache.
+SCRATCH_ROWS = _GR_CACHE + GR_CACHE_ROWS
 #: Implicit-midpoint iterations, and its test |dv|^2 / |v|^2 < eps^2 (REBOUNDx's).
 _MIDPOINT_ITERATIONS = MAX_ITERATIONS
 _EPS = np.finfo(np.float64).eps
@@ -86,15 +90,15 @@ def _velocity_term(term, pos, vel, m, G, com, acc, work):
     raise NotImplementedError("called from jitted code only")
 
 
-def _prepare_term(term, pos, m, G, work):
-    """What one velocity-dependent force computes from the positions alone, into ``work``, before an
-    operator evaluates it at several velocities (gr: :func:`~orbitsim.forces.gr.gr_prepare`;
-    nothing for the others)."""
+def _operator_work(term, pos, m, G, scratch):
+    """The work rows one velocity-dependent force's operator evaluates it with at positions ``pos``, holding
+    what the force computes from the positions alone (gr: :func:`~orbitsim.forces.gr.gr_prepare_once`'s
+    block of its own rows, prepared only for new positions; the shared work rows for the others)."""
     raise NotImplementedError("called from jitted code only")
 
 
 def _prepared_velocity_term(term, pos, vel, m, G, com, acc, work):
-    """:func:`_velocity_term` after :func:`_prepare_term` at the same positions: the same bits."""
+    """:func:`_velocity_term` with ``work`` from :func:`_operator_work` at the same positions: the same bits."""
     raise NotImplementedError("called from jitted code only")
 
 
@@ -139,11 +143,11 @@ def _ol_velocity_term(term, pos, vel, m, G, com, acc, work):
     return lambda term, pos, vel, m, G, com, acc, work: None
 
 
-@overload_inline(_prepare_term)
-def _ol_prepare_term(term, pos, m, G, work):
+@overload_inline(_operator_work)
+def _ol_operator_work(term, pos, m, G, scratch):
     if _record(term) is GRTerm:
-        return lambda term, pos, m, G, work: gr_prepare(pos, m, G, term.source, work)
-    return lambda term, pos, m, G, work: None
+        return lambda term, pos, m, G, scratch: gr_prepare_once(pos, m, G, term.source, scratch[_GR_CACHE:])
+    return lambda term, pos, m, G, scratch: scratch[_OP_ROWS:_GR_CACHE]
 
 
 @overload_inline(_prepared_velocity_term)
@@ -261,20 +265,6 @@ def _ol_force_energy_of(terms, pos, vel, m, G, e):
 
 # -- the implicit midpoint ----------------------------------------------------------------------
 
-@jit_inline
-def _converged(vf, vp):
-    """REBOUNDx's implicit-midpoint test: sum |v_new - v_prev|^2 / sum |v_new|^2 < eps^2."""
-    delta = 0.0
-    tot = 0.0
-    for i in range(vf.shape[1]):
-        dx = vf[0, i] - vp[0, i]
-        dy = vf[1, i] - vp[1, i]
-        dz = vf[2, i] - vp[2, i]
-        delta += dx * dx + dy * dy + dz * dz
-        tot += vf[0, i] * vf[0, i] + vf[1, i] * vf[1, i] + vf[2, i] * vf[2, i]
-    return delta / tot < _EPS * _EPS
-
-
 @jit
 def _implicit_midpoint(term, pos, vel, m, G, h, scratch):
     """v(h) = v(0) + h a(pos, (v(0) + v(h)) / 2) for one velocity-dependent force, solved by
@@ -283,33 +273,44 @@ def _implicit_midpoint(term, pos, vel, m, G, h, scratch):
 
     The centre of mass the force reads is that of the state before the step, as in REBOUNDx,
     whose simulation particles keep their velocities until the operator ends. The positions do
-    not move, so what the force computes from them alone is computed once (:func:`_prepare_term`:
-    ``gr``'s Newtonian sum and Jacobi positions), not at every iteration as in REBOUNDx.
+    not move, so what the force computes from them alone is computed once (:func:`_operator_work`:
+    ``gr``'s Newtonian sum and Jacobi positions), not at every iteration as in REBOUNDx, and for
+    ``gr`` not again in the next operator at the same positions (the next step's first).
     """
     n = pos.shape[1]
-    v0, vf, vp, va, a = scratch[0:3], scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
-    work = scratch[_OP_ROWS:]
+    vf, va, a = scratch[0:3], scratch[3:6], scratch[6:9]  # vel itself is v(0) until the end
     for k in range(3):  # explicit loops, not slice assignments: they cost more than a few bodies' arithmetic
         for i in range(n):
-            v0[k, i] = vel[k, i]
             vf[k, i] = vel[k, i]
             va[k, i] = vel[k, i]
     com = _com_for(term, pos, vel, m)
-    _prepare_term(term, pos, m, G, work)
+    work = _operator_work(term, pos, m, G, scratch)
     for _ in range(_MIDPOINT_ITERATIONS):
         for k in range(3):
             for i in range(n):
-                vp[k, i] = vf[k, i]
                 a[k, i] = 0.0
         _prepared_velocity_term(term, pos, va, m, G, com, a, work)
-        for k in range(3):
-            for i in range(n):
-                vf[k, i] = v0[k, i] + h * a[k, i]
-        if _converged(vf, vp):
+        # the new estimate, and REBOUNDx's test on it in the same pass: sum |v_new - v_prev|^2 / sum |v_new|^2
+        # < eps^2, each sum taken body by body as REBOUNDx does
+        delta = 0.0
+        tot = 0.0
+        for i in range(n):
+            fx = vel[0, i] + h * a[0, i]
+            fy = vel[1, i] + h * a[1, i]
+            fz = vel[2, i] + h * a[2, i]
+            dx = fx - vf[0, i]
+            dy = fy - vf[1, i]
+            dz = fz - vf[2, i]
+            delta += dx * dx + dy * dy + dz * dz
+            tot += fx * fx + fy * fy + fz * fz
+            vf[0, i] = fx
+            vf[1, i] = fy
+            vf[2, i] = fz
+        if delta / tot < _EPS * _EPS:
             break
         for k in range(3):
             for i in range(n):
-                va[k, i] = 0.5 * (v0[k, i] + vf[k, i])
+                va[k, i] = 0.5 * (vel[k, i] + vf[k, i])
     for k in range(3):
         for i in range(n):
             vel[k, i] = vf[k, i]
