@@ -38,15 +38,10 @@ from orbitsim._jit import jit, jit_inline, jit_llvm_inline
 MAX_ITERATIONS = 10
 #: Rows of ``gr``'s work: Newtonian accelerations (0-2), Jacobi x, v, a (3-11), Jacobi 1PN
 #: accelerations (12-14), per Jacobi coordinate r, mu / r, 3 mu / r, r^3, 3 mu / r^3 (15-19), and
-#: the Jacobi chain's mass factors (20-23, :func:`_chain_factors`), v~ (24-26), |v~|^2, A and a
-#: converged flag (27-29; :func:`_solve_vtilde`).
-GR_WORK_ROWS = 30
-#: Rows of the chain's mass factors in ``gr``'s work: at chain place k >= 1, 1 / eta and eta_k / eta
-#: going up the chain (column 0: the total mass), 1 / eta and the eta left going down (column 0: 1 / m
-#: of the chain's first body), each computed as the transforms compute them.
-_UP_EI, _UP_PME, _DOWN_EI, _DOWN_ETA = 20, 21, 22, 23
-#: Rows of v~ (3), |v~|^2, A and 1.0 once converged, of every Jacobi coordinate (:func:`_solve_vtilde`).
-_W, _W2, _A, _DONE = 24, 27, 28, 29
+#: v~ (20-22), |v~|^2, A and a converged flag (23-25) when solved for every coordinate at once
+#: (:func:`_solve_vtilde_all`).
+GR_WORK_ROWS = 26
+_W, _W2, _A, _DONE = 20, 23, 24, 25
 _EPS = np.finfo(np.float64).eps
 #: Rows of ``gr``'s operator cache (:func:`gr_prepare_once`): a work block of GR_WORK_ROWS that
 #: :func:`gr_prepare` filled, then the positions (3 rows) and masses (1 row) it was filled for, and a
@@ -201,30 +196,9 @@ def _to_jacobi_positions(pos, an, m, src, jac):
 
 
 @jit_inline
-def _chain_factors(m, src, work):
-    """The Jacobi chain's mass factors (rows :data:`_UP_EI` .. :data:`_DOWN_ETA`): the divisions and
-    products of the velocity transforms, which depend on the masses alone, computed once per
-    :func:`gr_prepare` in the order those transforms compute them (the same bits), not at each velocity."""
-    n = m.shape[0]
-    eta = m[chain(0, src)]
-    for k in range(1, n):
-        i = chain(k, src)
-        ei = 1.0 / eta
-        eta += m[i]
-        work[_UP_EI, k] = ei
-        work[_UP_PME, k] = eta * ei
-    work[_UP_EI, 0] = eta
-    for k in range(n - 1, 0, -1):
-        work[_DOWN_EI, k] = 1.0 / eta
-        eta -= m[chain(k, src)]
-        work[_DOWN_ETA, k] = eta
-    work[_DOWN_EI, 0] = 1.0 / eta
-
-
-@jit_inline
-def _to_jacobi_velocities(vel, m, src, jac, work):
-    """jac rows 3-5 = Jacobi v of chain places 1..N-1 (as :func:`_to_jacobi_positions`, with the mass
-    factors of :func:`_chain_factors` in ``work``)."""
+def _to_jacobi_velocities(vel, m, src, jac):
+    """jac rows 3-5 = Jacobi v of chain places 1..N-1 (as :func:`_to_jacobi_positions`); returns
+    the total mass."""
     n = vel.shape[1]
     i0 = chain(0, src)
     eta = m[i0]
@@ -234,8 +208,9 @@ def _to_jacobi_velocities(vel, m, src, jac, work):
     sz = eta * vel[2, i0]
     for k in range(1, n):
         i = chain(k, src)
-        ei = work[_UP_EI, k]
-        pme = work[_UP_PME, k]
+        ei = 1.0 / eta
+        eta += m[i]
+        pme = eta * ei
         vx = vel[0, i] - sx * ei
         vy = vel[1, i] - sy * ei
         vz = vel[2, i] - sz * ei
@@ -248,24 +223,54 @@ def _to_jacobi_velocities(vel, m, src, jac, work):
     jac[3, 0] = sx
     jac[4, 0] = sy
     jac[5, 0] = sz
+    return eta
 
 
 @jit_inline
-def _solve_vtilde(jac, work, C2):
-    """v~ = v / (1 - A(v~)) of every Jacobi coordinate (chain places 1..N-1, v from ``jac`` rows 3-5)
-    by fixed-point iteration with REBOUNDx's stopping rule, into ``work`` rows :data:`_W` .. :data:`_A`
-    (3 mu / r from row 17). Each coordinate's operations are those of solving it alone, in the same
-    order (the same bits); the coordinates advance together, one iteration of each in turn, so that
-    their divisions overlap: solved one after another, each iteration's chain of two divisions
-    waited on the last, and that latency was most of a ``gr`` evaluation."""
+def _vtilde_iteration(vx, vy, vz, A, three_mu_r, C2):
+    """One step of the fixed point v~ = v / (1 - A(v~)): v~ from the last A, then |v~|^2 and A(v~)
+    (``three_mu_r``: 3 mu / r, computed as ``3.0 * mu / r``)."""
+    wx = vx / (1.0 - A)
+    wy = vy / (1.0 - A)
+    wz = vz / (1.0 - A)
+    w2 = wx * wx + wy * wy + wz * wz
+    return wx, wy, wz, w2, (0.5 * w2 + three_mu_r) / C2
+
+
+@jit_inline
+def _vtilde_converged(wx, wy, wz, ox, oy, oz, w2):
+    """REBOUNDx's stopping rule for v~: |v~ - v~_previous|^2 / |v~|^2 < eps^2."""
+    dx, dy, dz = wx - ox, wy - oy, wz - oz
+    return (dx * dx + dy * dy + dz * dz) / w2 < _EPS * _EPS
+
+
+@jit_inline
+def _solve_vtilde(vx, vy, vz, three_mu_r, C2):
+    """v~ of one Jacobi coordinate by fixed-point iteration, REBOUNDx's stopping rule; returns v~,
+    |v~|^2, A."""
+    wx, wy, wz = vx, vy, vz
+    w2 = wx * wx + wy * wy + wz * wz
+    A = (0.5 * w2 + three_mu_r) / C2
+    for _ in range(MAX_ITERATIONS):
+        ox, oy, oz = wx, wy, wz
+        wx, wy, wz, w2, A = _vtilde_iteration(vx, vy, vz, A, three_mu_r, C2)
+        if _vtilde_converged(wx, wy, wz, ox, oy, oz, w2):
+            break
+    return wx, wy, wz, w2, A
+
+
+@jit_inline
+def _solve_vtilde_all(jac, work, C2):
+    """:func:`_solve_vtilde` for every Jacobi coordinate (v from ``jac`` rows 3-5, 3 mu / r from ``work``
+    row 17) into ``work`` rows :data:`_W` .. :data:`_A`. Each coordinate's operations are those of
+    solving it alone, in the same order (the same bits); the coordinates advance together, one
+    iteration of each in turn, so that their divisions overlap: solved one after another, each
+    iteration's two divisions waited on the last, and that wait was most of an evaluation."""
     n = jac.shape[1]
     for k in range(1, n):
         vx, vy, vz = jac[3, k], jac[4, k], jac[5, k]
         w2 = vx * vx + vy * vy + vz * vz
-        work[_W, k] = vx
-        work[_W + 1, k] = vy
-        work[_W + 2, k] = vz
-        work[_W2, k] = w2
+        work[_W, k], work[_W + 1, k], work[_W + 2, k], work[_W2, k] = vx, vy, vz, w2
         work[_A, k] = (0.5 * w2 + work[17, k]) / C2
         work[_DONE, k] = 0.0
     for _ in range(MAX_ITERATIONS):
@@ -273,19 +278,10 @@ def _solve_vtilde(jac, work, C2):
         for k in range(1, n):
             if work[_DONE, k] != 0.0:
                 continue
-            A = work[_A, k]
             ox, oy, oz = work[_W, k], work[_W + 1, k], work[_W + 2, k]
-            wx = jac[3, k] / (1.0 - A)
-            wy = jac[4, k] / (1.0 - A)
-            wz = jac[5, k] / (1.0 - A)
-            w2 = wx * wx + wy * wy + wz * wz
-            work[_W, k] = wx
-            work[_W + 1, k] = wy
-            work[_W + 2, k] = wz
-            work[_W2, k] = w2
-            work[_A, k] = (0.5 * w2 + work[17, k]) / C2
-            dx, dy, dz = wx - ox, wy - oy, wz - oz
-            if (dx * dx + dy * dy + dz * dz) / w2 < _EPS * _EPS:
+            wx, wy, wz, w2, A = _vtilde_iteration(jac[3, k], jac[4, k], jac[5, k], work[_A, k], work[17, k], C2)
+            work[_W, k], work[_W + 1, k], work[_W + 2, k], work[_W2, k], work[_A, k] = wx, wy, wz, w2, A
+            if _vtilde_converged(wx, wy, wz, ox, oy, oz, w2):
                 work[_DONE, k] = 1.0
             else:
                 active = True
@@ -298,14 +294,13 @@ def gr_prepare(pos, m, G, src, work):
     """The part of :func:`gr_accelerations` that depends on positions only, into ``work``: the
     Newtonian accelerations (rows 0-2) and the Jacobi positions and accelerations (rows 3-5,
     9-11). An operator that evaluates the force at fixed positions and several velocities
-    (the implicit midpoint) prepares once and calls :func:`gr_accelerations_prepared` per
+    (the implicit midpoint) prepares once and calls :func:`gr_operator_accelerations` per
     velocity: the same bits as :func:`gr_accelerations` each time, without the N^2 sum. Rows
     15-19 get each Jacobi coordinate's r, mu / r, 3 mu / r, r^3 and 3 mu / r^3, each written as
     the expressions of REBOUNDx's ``gr.c`` evaluate it (left to right), so the bits are theirs."""
     _newtonian_in_chain(pos, m, G, src, work[0:3])
     jac = work[3:12]
     _to_jacobi_positions(pos, work[0:3], m, src, jac)
-    _chain_factors(m, src, work)
     mu = G * m[src]
     for k in range(1, pos.shape[1]):
         x, y, z = jac[0, k], jac[1, k], jac[2, k]
@@ -318,13 +313,13 @@ def gr_prepare(pos, m, G, src, work):
         work[19, k] = 3.0 * mu / ri3
 
 
-@jit_inline
+@jit_llvm_inline
 def _same_bits(a, b):
     """a and b are the same float64, -0.0 and 0.0 apart (``==`` alone takes them for equal)."""
     return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
 
 
-@jit_inline
+@jit_llvm_inline
 def gr_prepare_once(pos, m, G, src, cache):
     """The :func:`gr_prepare`'d work block at ``pos`` (``cache[:GR_WORK_ROWS]``; ``cache`` has
     :data:`GR_CACHE_ROWS` rows), prepared only if the block does not already hold these positions',
@@ -352,54 +347,81 @@ def gr_prepare_once(pos, m, G, src, cache):
     return work
 
 
-@jit
-def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
-    """acc (3, N) += the 1PN acceleration at velocities ``vel``, the positions' part taken from
-    ``work`` as :func:`gr_prepare` left it."""
-    n = vel.shape[1]
-    C2 = c * c
-    mu = G * m[src]
-    jac = work[3:12]
-    apn = work[12:15]
-    _to_jacobi_velocities(vel, m, src, jac, work)
-    _solve_vtilde(jac, work, C2)
-    for k in range(1, n):
-        x, y, z = jac[0, k], jac[1, k], jac[2, k]
-        wx, wy, wz, w2, A = work[_W, k], work[_W + 1, k], work[_W + 2, k], work[_W2, k], work[_A, k]
-        B = (work[16, k] - 1.5 * w2) * mu / work[18, k] / C2
-        rdotrdot = x * jac[3, k] + y * jac[4, k] + z * jac[5, k]
-        vdx = jac[6, k] + B * x
-        vdy = jac[7, k] + B * y
-        vdz = jac[8, k] + B * z
-        vdotvdot = wx * vdx + wy * vdy + wz * vdz
-        D = (vdotvdot - work[19, k] * rdotrdot) / C2
-        apn[0, k] = B * (1.0 - A) * x - A * jac[6, k] - D * wx
-        apn[1, k] = B * (1.0 - A) * y - A * jac[7, k] - D * wy
-        apn[2, k] = B * (1.0 - A) * z - A * jac[8, k] - D * wz
-    # Back to inertial accelerations (REBOUND's jacobi_to_inertial_acc; the centre of mass's is 0), the
-    # mass factors from _chain_factors.
-    eta = work[_UP_EI, 0]
+@jit_inline
+def _pn_acceleration(k, wx, wy, wz, w2, A, mu, C2, jac, work, apn):
+    """apn[:, k] = the 1PN acceleration of Jacobi coordinate k (module docstring), given its v~, |v~|^2, A."""
+    x, y, z = jac[0, k], jac[1, k], jac[2, k]
+    B = (work[16, k] - 1.5 * w2) * mu / work[18, k] / C2
+    rdotrdot = x * jac[3, k] + y * jac[4, k] + z * jac[5, k]
+    vdx = jac[6, k] + B * x
+    vdy = jac[7, k] + B * y
+    vdz = jac[8, k] + B * z
+    vdotvdot = wx * vdx + wy * vdy + wz * vdz
+    D = (vdotvdot - work[19, k] * rdotrdot) / C2
+    apn[0, k] = B * (1.0 - A) * x - A * jac[6, k] - D * wx
+    apn[1, k] = B * (1.0 - A) * y - A * jac[7, k] - D * wy
+    apn[2, k] = B * (1.0 - A) * z - A * jac[8, k] - D * wz
+
+
+@jit_inline
+def _add_inertial(apn, m, src, eta, acc):
+    """acc += the inertial accelerations of the Jacobi 1PN accelerations ``apn`` (REBOUND's
+    jacobi_to_inertial_acc; the centre of mass's is 0); ``eta``: the total mass."""
+    n = apn.shape[1]
     sx = 0.0 * eta
     sy = 0.0 * eta
     sz = 0.0 * eta
     for k in range(n - 1, 0, -1):
         i = chain(k, src)
-        ei = work[_DOWN_EI, k]
+        ei = 1.0 / eta
         sx = (sx - m[i] * apn[0, k]) * ei
         sy = (sy - m[i] * apn[1, k]) * ei
         sz = (sz - m[i] * apn[2, k]) * ei
         acc[0, i] += apn[0, k] + sx
         acc[1, i] += apn[1, k] + sy
         acc[2, i] += apn[2, k] + sz
-        eta = work[_DOWN_ETA, k]
+        eta -= m[i]
         sx *= eta
         sy *= eta
         sz *= eta
     i0 = chain(0, src)
-    mi = work[_DOWN_EI, 0]
+    mi = 1.0 / eta
     acc[0, i0] += sx * mi
     acc[1, i0] += sy * mi
     acc[2, i0] += sz * mi
+
+
+@jit
+def gr_accelerations_prepared(vel, m, G, src, c, acc, work):
+    """acc (3, N) += the 1PN acceleration at velocities ``vel``, the positions' part taken from
+    ``work`` as :func:`gr_prepare` left it; v~ solved one Jacobi coordinate after another."""
+    C2 = c * c
+    mu = G * m[src]
+    jac = work[3:12]
+    apn = work[12:15]
+    eta = _to_jacobi_velocities(vel, m, src, jac)
+    for k in range(1, vel.shape[1]):
+        wx, wy, wz, w2, A = _solve_vtilde(jac[3, k], jac[4, k], jac[5, k], work[17, k], C2)
+        _pn_acceleration(k, wx, wy, wz, w2, A, mu, C2, jac, work, apn)
+    _add_inertial(apn, m, src, eta, acc)
+
+
+@jit
+def gr_operator_accelerations(vel, m, G, src, c, acc, work):
+    """:func:`gr_accelerations_prepared` with v~ solved for every Jacobi coordinate at once
+    (:func:`_solve_vtilde_all`): the same bits, a quarter less time; the implicit midpoint's
+    evaluation. (Kept apart from the other: its interleaved loop costs each kernel that links it
+    compile time, and IAS15 evaluates ``gr`` through :func:`gr_accelerations`.)"""
+    C2 = c * c
+    mu = G * m[src]
+    jac = work[3:12]
+    apn = work[12:15]
+    eta = _to_jacobi_velocities(vel, m, src, jac)
+    _solve_vtilde_all(jac, work, C2)
+    for k in range(1, vel.shape[1]):
+        _pn_acceleration(k, work[_W, k], work[_W + 1, k], work[_W + 2, k], work[_W2, k], work[_A, k], mu, C2, jac,
+                         work, apn)
+    _add_inertial(apn, m, src, eta, acc)
 
 
 @jit

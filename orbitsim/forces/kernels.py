@@ -34,8 +34,8 @@ from orbitsim.forces.gr import (
     GR_WORK_ROWS,
     MAX_ITERATIONS,
     gr_accelerations,
-    gr_accelerations_prepared,
     gr_energy,
+    gr_operator_accelerations,
     gr_potential_accelerations,
     gr_potential_energy,
     gr_prepare_once,
@@ -153,7 +153,7 @@ def _ol_operator_work(term, pos, m, G, scratch):
 @overload_inline(_prepared_velocity_term)
 def _ol_prepared_velocity_term(term, pos, vel, m, G, com, acc, work):
     if _record(term) is GRTerm:
-        return lambda term, pos, vel, m, G, com, acc, work: gr_accelerations_prepared(vel, m, G, term.source, term.c,
+        return lambda term, pos, vel, m, G, com, acc, work: gr_operator_accelerations(vel, m, G, term.source, term.c,
                                                                                       acc, work)
     return lambda term, pos, vel, m, G, com, acc, work: _velocity_term(term, pos, vel, m, G, com, acc, work)
 
