@@ -244,6 +244,22 @@ def test_velocity_operator_matches_reboundx_integrate_force(fid):
     assert_round_off(vel, theirs)
 
 
+def test_operators_at_the_same_positions_reuse_grs_prepared_work_and_match_reboundx():
+    """Two gr operators in a row at fixed positions (a step's last and the next step's first): the second
+    uses the work the first prepared (gr_prepare_once), and both stay REBOUNDx's, which prepares anew."""
+    sim = sun_two_planets()
+    rebx, force = add_rebx(sim, GR, c=30.0)
+    op = rebx.load_operator("integrate_force")
+    op.params["force"] = force
+    op.params["integrator"] = reboundx.integrators["implicit_midpoint"]
+    pos, vel, m = state(sim)
+    terms, scratch = terms_of(*our_rows(sim, GR, c=30.0)), make_force_scratch(3)
+    for _ in range(3):
+        op.step(sim, 0.05)
+        velocity_operator(pos, vel, m, sim.G, terms, 0.05, scratch)
+        assert_round_off(vel, state(sim)[1])
+
+
 def test_velocity_operator_runs_one_operator_per_force_in_order():
     """gr then migration: REBOUNDx's two operators stepped in that order."""
     sim = sun_two_planets()
