@@ -52,7 +52,7 @@ __all__ = ["SCRATCH_ROWS", "add_position_forces", "add_velocity_forces", "force_
 #: acceleration there (3 rows each).
 _OP_ROWS = 9
 #: First row of gr's operator cache (:func:`~orbitsim.forces.gr.gr_prepare_once`), after the operator's rows
-#: and the force's work rows (gr needs 20, gr_full 20).
+#: and the forces' work rows (gr needs GR_WORK_ROWS, gr_full WORK_ROWS).
 _GR_CACHE = _OP_ROWS + max(GR_WORK_ROWS, WORK_ROWS)
 #: Rows of the scratch: the operator's, the forces' work rows, gr's operator cache.
 SCRATCH_ROWS = _GR_CACHE + GR_CACHE_ROWS
