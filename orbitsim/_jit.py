@@ -56,8 +56,8 @@ _PACKAGE_DIR = Path(__file__).resolve().parent
 #: The parts of the package that hold jitted code, or objects that jitted code reaches; their source
 #: keys the cache directory. The conventions test (test_conventions.py) computes that set from the
 #: source and fails when a module is missing here.
-_KERNEL_SOURCES = ("_jit.py", "physics", "integrators", "events", "forces", "chaos", "ensemble", "bench/ceiling.py",
-                   "bench/kernels.py")
+_KERNEL_SOURCES = ("_jit.py", "physics", "integrators", "events", "forces", "chaos", "ensemble", "gpu",
+                   "bench/ceiling.py", "bench/kernels.py")
 
 
 def _source_hash() -> str:

@@ -36,11 +36,10 @@ from orbitsim.forces.gr import (
     gr_accelerations,
     gr_energy,
     gr_operator_accelerations,
-    gr_potential_accelerations,
-    gr_potential_energy,
     gr_prepare_once,
 )
 from orbitsim.forces.gr_full import WORK_ROWS, gr_full_accelerations, gr_full_energy
+from orbitsim.forces.gr_potential import gr_potential_accelerations, gr_potential_energy
 from orbitsim.forces.harmonics import harmonics_accelerations, harmonics_potential
 from orbitsim.forces.migration import centre_of_mass, migration_accelerations
 from orbitsim.forces.terms import VELOCITY_TERMS, GRFullTerm, GRPotentialTerm, GRTerm, HarmonicsTerm, MigrationTerm

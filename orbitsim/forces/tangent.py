@@ -8,7 +8,7 @@ every scheme's variational kick and MEGNO's read call beside
 compiles to nothing for a force context without forces. With forces it walks the run's records
 (:mod:`orbitsim.forces.terms`) as the force kernels do, each resolved to its own derivative:
 
-* ``gr_potential``: :func:`orbitsim.forces.gr.gr_potential_tangent`;
+* ``gr_potential``: :func:`orbitsim.forces.gr_potential.gr_potential_tangent`;
 * ``harmonics``: :func:`orbitsim.forces.harmonics.harmonics_tangent`.
 
 Each is the exact Jacobian of the acceleration the kick applies (the reaction on the source
@@ -49,7 +49,7 @@ def _tangent_term(term, pos, m, G, dpos, dacc):
 @overload_inline(_tangent_term)
 def _ol_tangent_term(term, pos, m, G, dpos, dacc):
     # lazy: the force modules load only when a forced variational step is typed
-    from orbitsim.forces.gr import gr_potential_tangent  # noqa: PLC0415 -- lazy: off runs without forces
+    from orbitsim.forces.gr_potential import gr_potential_tangent  # noqa: PLC0415 -- lazy: off runs without forces
     from orbitsim.forces.harmonics import harmonics_tangent  # noqa: PLC0415 -- lazy: off runs without forces
     from orbitsim.forces.kernels import _record  # noqa: PLC0415 -- lazy: off runs without forces
     from orbitsim.forces.terms import (  # noqa: PLC0415 -- lazy: off runs without forces

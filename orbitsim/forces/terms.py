@@ -24,7 +24,7 @@ __all__ = ["POSITION_TERMS", "VELOCITY_TERMS", "GRFullTerm", "GRPotentialTerm", 
 
 
 class GRPotentialTerm(NamedTuple):
-    """``gr_potential`` about body ``source`` (:func:`orbitsim.forces.gr.gr_potential_accelerations`)."""
+    """``gr_potential`` about body ``source`` (:func:`orbitsim.forces.gr_potential.gr_potential_accelerations`)."""
 
     source: int
     c: float
