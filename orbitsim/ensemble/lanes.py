@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 
-from orbitsim._jit import jit, jit_inline, jit_llvm_inline
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline, wide_vectors
 from orbitsim.chaos.megno import (
     RESCALE_ABOVE,
     MegnoState,
@@ -79,8 +79,11 @@ from orbitsim.physics.kepler_solver import (
 )
 from orbitsim.physics.tangent import pair_tangent_acceleration
 
-#: Pixels per group: 16 doubles, two AVX-512 registers (four AVX2 ones); 8 gained less, 32 no more.
-LANES = 16
+#: Pixels per group: 24 doubles, three AVX-512 registers (six AVX2 ones). With 512-bit vectors
+#: (:func:`orbitsim._jit.wide_vectors`) the 20 x 20 Jupiter-Saturn map's kernel took 0.68-0.70 s on one thread
+#: against 0.71-0.72 with 16 lanes and 0.68-0.69 with 32 (whose 13 groups of its 400 pixels then split
+#: unevenly over two threads); with 256-bit vectors 8 gained less than 16, 32 no more.
+LANES = 24
 
 # Rows of a group (each LANES numbers). The pixel's own state, kept between steps and blocks:
 TP, TV, TDP, TDV = 0, 3, 6, 9  # the test body's inertial position, velocity and their tangent vector (3 rows each)
@@ -109,6 +112,7 @@ def drift_lanes(g, views, mu, dt):
     ``mu``, each with the bits of :func:`kepler_drift_tangent`; ``views`` are the (3, LANES) views of those
     rows. Returns the number of live lanes whose drift failed (their LIVE set to 0, STOP_CODE to
     KEPLER_FAILED; the caller sets STOP_STEP)."""
+    wide_vectors()
     for lane in range(LANES):
         x, y, z = _row(g, JP, lane), _row(g, JP + 1, lane), _row(g, JP + 2, lane)
         vx, vy, vz = _row(g, JV, lane), _row(g, JV + 1, lane), _row(g, JV + 2, lane)
@@ -190,6 +194,7 @@ def _tangent_row_lanes(g, pos_row, dpos_row, out_row, rec, s, pos_block, dpos_bl
     """Row p (the test body) of :func:`orbitsim.physics.tangent.tangent_accelerations` for every lane, against
     the recorded massive positions and (scaled) tangent positions, into rows ``out_row..+2``: the same terms in
     the same order as one pixel's (a sum over the massive bodies, in order)."""
+    wide_vectors()
     for c in range(3):
         for lane in range(LANES):
             g[(out_row + c) * LANES + lane] = 0.0
@@ -224,6 +229,7 @@ def _stop_lanes(g, failed, s):
 def _kick_lanes(g, rec, s, q, m, G, eps2, dt, mu_t):
     """The interaction kick of every lane's test body and of its tangent vector (interaction_kick, then
     interaction_kick_tangent's part for the last body), against step ``s`` of the record."""
+    wide_vectors()
     for c in range(3):
         com = rec[s, R_HALF_COM + c]
         for lane in range(LANES):
@@ -294,6 +300,7 @@ def pixel_block_lanes(g, whole, q, m, G, eps2, dt, mu_t, rec, n_rec, step0, t_st
     lane's whole tangent state. A lane that stops is left with LIVE 0, its STOP_CODE (COMPLETE never; a
     status, or KEPLER_FAILED with its state as before the failed step) and STOP_STEP (steps of this block
     it took, the stop's included). Returns the number of lanes still live."""
+    wide_vectors()
     half = 0.5 * dt
     views = (g[JP * LANES:(JP + 3) * LANES].reshape((3, LANES)), g[JV * LANES:(JV + 3) * LANES].reshape((3, LANES)),
              g[DJP * LANES:(DJP + 3) * LANES].reshape((3, LANES)), g[DJV * LANES:(DJV + 3) * LANES].reshape((3, LANES)))

@@ -47,9 +47,8 @@ import math
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_inline, jit_llvm_inline, jit_parallel_exact, stop_requested
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline, jit_parallel_exact, stop_requested, wide_vectors
 from orbitsim.ensemble.kernels import _energy, elements_ae, finish_system, jacobi_elements_ae
-from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.status import COLLIDED, COMPLETE, DIVERGED, ESCAPED
 from orbitsim.physics.coordinates import inertial_to_jacobi
 from orbitsim.physics.kepler import KEPLER_OK, fg_apply, kepler_drift, lagrange_coefficients
@@ -62,6 +61,10 @@ from orbitsim.physics.kepler_solver import (
 )
 
 _U = np.uint64
+
+#: Systems per group: 16 doubles, two AVX-512 registers (four AVX2 ones). :func:`_copy_row` is written out
+#: for 16 (a map's pixels, :mod:`orbitsim.ensemble.lanes`, have a width of their own).
+LANES = 16
 
 # Rows of a body's block (each LANES numbers):
 JP, JV, IPOS, ACC = 0, 3, 6, 9  # Jacobi position and velocity, inertial position, accelerations (3 rows each)
@@ -98,6 +101,7 @@ def _block_of(block_rows, b):
 def _copy_row(g, dst, src):
     """Copy the LANES numbers at ``src`` to ``dst``: every load before any store, so that LLVM's SLP vectoriser
     makes vector moves of them (it may not reorder a load past a store that could overlap it)."""
+    wide_vectors()
     a0, a1, a2, a3 = g[src], g[src + _U(1)], g[src + _U(2)], g[src + _U(3)]
     a4, a5, a6, a7 = g[src + _U(4)], g[src + _U(5)], g[src + _U(6)], g[src + _U(7)]
     a8, a9, a10, a11 = g[src + _U(8)], g[src + _U(9)], g[src + _U(10)], g[src + _U(11)]
@@ -110,6 +114,7 @@ def _copy_row(g, dst, src):
 
 @jit_llvm_inline
 def _copy_rows(g, dst_base, dst_row, src_base, src_row, count):
+    wide_vectors()
     for c in range(count):
         _copy_row(g, _row(dst_base, dst_row + c), _row(src_base, src_row + c))
 
@@ -358,6 +363,7 @@ def kick_lanes(g, n, G, eps2, dt, width):
     """:func:`orbitsim.integrators.wisdom_holman.operators.interaction_kick` (Jacobi) of every lane: the
     inertial positions, the pair accelerations, their Jacobi transform and the kick of the live lanes'
     velocities, each the scalar kick's operations in its order. ``width`` is LANES (see :func:`run_group`)."""
+    wide_vectors()
     b0 = _block(0)
     # inertial positions: the centre of mass carried from body n-1 down to body 1 (jacobi_to_inertial)
     _copy_rows(g, _block(n - 1), CARRY, b0, JP, 3)
@@ -483,6 +489,7 @@ def run_group(g, n, G, dt, n_steps, escape_r2, check_collisions, watch):
     """Step a group's live lanes ``n_steps`` times, each until it stops (its LIVE 0, STOP_CODE, STOP_STEP in
     block 0). Returns the steps taken by the lanes still live at the end (``n_steps`` unless a stop of the
     kernels was asked for, :func:`orbitsim._jit.stop_requested`: the caller then throws the results away)."""
+    wide_vectors()
     half = 0.5 * dt
     eps2 = 0.0
     b0 = _block(0)

@@ -40,12 +40,12 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from orbitsim._jit import jit, jit_parallel_exact, stop_requested
+from orbitsim._jit import jit, jit_parallel_exact, stop_requested, wide_vectors
 from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, deltad_delta_body, megno_update, rescale_power_of_two
 from orbitsim.ensemble.kernels import _energy, jacobi_elements_ae, record_chaos_indicators
-from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.status import COMPLETE, DIVERGED, ENERGY_ERROR
 from orbitsim.ensemble.system_lanes import (
+    LANES,
     _copy_rows,
     _rank_code,
     _row,
@@ -107,6 +107,7 @@ def _megno_lanes(g, n, G, eps2, dt, t, t_start, n_before, width):
     """megno_after_step of the live lanes: the tangent gravity of every pair at the new state, deltad_delta's
     sums carried body by body, megno_update; marks in NEAR the lanes to test for a rescaling. Returns
     whether any lane is marked."""
+    wide_vectors()
     for b in range(n):  # the new state into the rows the tangent gravity reads (scratch until the next kick)
         _copy_rows(g, block(b), IPOS, block(b), P, 3)
         _copy_rows(g, block(b), DIPOS, block(b), DP, 3)
@@ -171,6 +172,7 @@ def run_tangent_group(g, n, G, eps2, dt, t_start, n_steps, escape_r2, check_coll
     STOP_CODE, STOP_STEP in block 0), with MEGNO's read after every step. ``whole`` (2, 3, N) is scratch for a
     rescaled lane. Returns the steps taken by the lanes still live at the end (fewer where a stop of the kernels
     was asked for, :func:`orbitsim._jit.stop_requested`: the caller then throws the results away)."""
+    wide_vectors()
     half = 0.5 * dt
     b0 = block(0)
     width = _U(g.size // (n * BLOCK_ROWS))  # LANES, counted at run time (see system_lanes.run_group)

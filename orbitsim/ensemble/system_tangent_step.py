@@ -23,9 +23,9 @@ import math
 
 import numpy as np
 
-from orbitsim._jit import jit, jit_inline
-from orbitsim.ensemble.lanes import LANES
+from orbitsim._jit import jit, jit_inline, wide_vectors
 from orbitsim.ensemble.system_lanes import (
+    LANES,
     _copy_row,
     _copy_rows,
     _row,
@@ -67,6 +67,7 @@ def block(b):
 def to_jacobi_lanes(g, n, width):
     """inertial_to_jacobi of P, V, DP, DV into JP, JV, DJP, DJV for every lane: the centre of mass (12 rows)
     carried from body 0 up the chain, left in block 0's Jacobi rows."""
+    wide_vectors()
     _copy_rows(g, block(1), CARRY, block(0), P, 12)
     for i in range(1, n):
         base = block(i)
@@ -84,6 +85,7 @@ def to_jacobi_lanes(g, n, width):
 def to_inertial_lanes(g, n, width):
     """jacobi_to_inertial of JP, JV, DJP, DJV into P, V, DP, DV for the live lanes: the centre of mass carried
     from body n-1 down to body 1, then into block 0."""
+    wide_vectors()
     _copy_rows(g, block(n - 1), CARRY, block(0), JP, 12)
     for i in range(n - 1, 0, -1):
         base = block(i)
@@ -168,6 +170,7 @@ def tangent_gravity_lanes(g, n, G, eps2, first_i, width):
     ``first_i`` (1: every pair; 2: without (0, 1)). Pair (i, j < i) in j's block, row i's sum carried from j to
     j + 1, then set in i's block: the scalar's sum from zero (nothing was taken from row i before).
     ``first_i`` comes as an int64, never a literal: one compilation serves both callers (2-4 CPU-s each)."""
+    wide_vectors()
     for b in range(n):
         for c in range(3):
             dacc = _row(block(b), DACC + c)
@@ -207,6 +210,7 @@ def tangent_gravity_lanes(g, n, G, eps2, first_i, width):
 def kick_tangent_lanes(g, n, G, eps2, dt, width):
     """interaction_kick_tangent of every lane: the bodies' kick (interaction_kick, Jacobi), then the tangent
     vector's (the tangent gravity without the (0, 1) pair, its Jacobi transform, jacobi_term_tangent_kick)."""
+    wide_vectors()
     b0 = block(0)
     # inertial positions and tangent positions: the centre of mass carried from body n-1 down to body 1
     _copy_rows(g, block(n - 1), CARRY, b0, JP, 3)

@@ -123,9 +123,9 @@ def test_lanes_outside_the_common_case_take_the_scalar_drift_and_keep_their_bits
     from orbitsim.ensemble.lanes import LANES
     from orbitsim.physics.kepler_solver import setup_short
 
-    k = 40
+    k = 2 * LANES + LANES // 2
     masses, pos, vel = _test_planets(k, seed=3)
-    close = [5, 17, 39]  # one in each group
+    close = [5, LANES + 1, k - 1]  # one in each group
     for i in close:
         pos[i, :, 3] = pos[i, :, 0] + np.array([0.05, 0.0, 0.0])
         vel[i, :, 3] = vel[i, :, 0] + np.array([0.0, 1.0 / np.sqrt(0.05), 0.0])

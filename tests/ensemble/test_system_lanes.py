@@ -7,8 +7,8 @@ import pytest
 from ensemble_helpers import assert_same_bits, by_thread_count, giants_systems, stopping_group
 
 from orbitsim.ensemble import run_ensemble
-from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.status import COLLIDED, COMPLETE, DIVERGED, ESCAPED
+from orbitsim.ensemble.system_lanes import LANES
 from orbitsim.physics.kepler_solver import setup_short
 
 DT = 0.5

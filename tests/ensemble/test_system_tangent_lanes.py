@@ -18,9 +18,9 @@ from orbitsim.chaos.megno import RESCALE_ABOVE
 from orbitsim.cli.main import cli
 from orbitsim.ensemble import run_ensemble
 from orbitsim.ensemble.kernels import run_ensemble_variational
-from orbitsim.ensemble.lanes import LANES
 from orbitsim.ensemble.run import prepare_systems
 from orbitsim.ensemble.status import COLLIDED, COMPLETE, DIVERGED, ESCAPED, LYAPUNOV, MEGNO, N_COLUMNS
+from orbitsim.ensemble.system_lanes import LANES
 from orbitsim.integrators.wisdom_holman.tangent import TANGENT_SCRATCH_ROWS
 from orbitsim.physics.force_context import make_force
 from orbitsim.physics.kepler_solver import setup_short
