@@ -30,11 +30,17 @@ demo: $(STAMP)
 # runs in `make test-slow` (tests/suite_split.py); CI runs both.
 TEST_WORKERS ?= auto
 
+# The package's bytecode is compiled first (0.4 s once; pip does it for a wheel, not for an editable
+# install): where PYTHONDONTWRITEBYTECODE is set, as on the machines this suite is developed on, every
+# process the tests start would otherwise compile orbitsim's modules again (~0.4 s for all of them;
+# tests/cli: 26.0 -> 24.2 CPU-s). A stale file is only ignored, never run.
 test: $(STAMP)
 	$(BIN)/ruff check orbitsim tests benchmarks
+	$(BIN)/python -m compileall -q orbitsim > /dev/null
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=20
 
 test-slow: $(STAMP)
+	$(BIN)/python -m compileall -q orbitsim > /dev/null
 	$(BIN)/python -m pytest -q -m slow
 
 lint: $(STAMP)
@@ -45,3 +51,4 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) demo-report .pytest_cache
+	find orbitsim tests benchmarks -name __pycache__ -type d -prune -exec rm -rf {} +
