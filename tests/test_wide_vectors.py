@@ -20,7 +20,19 @@ from orbitsim._jit import wide_vectors
 
 ATTRIBUTE = '"prefer-vector-width"="512"'
 
-PROBE = '''
+#: One lane loop, written as the kernels write theirs: one flat array, rows at constant offsets. A loop of 16
+#: this short is unrolled first and then left scalar (benchmarks/README.md, fifth pass), hence 64 lanes.
+LOOP = """
+    for lane in range(64):
+        x, y, z = g[lane], g[64 + lane], g[128 + lane]
+        r2 = x * x + y * y + z * z
+        k = a / (r2 * math.sqrt(r2))
+        g[192 + lane] = k * x
+        g[256 + lane] = k * y
+        g[320 + lane] = k * z
+"""
+
+PROBE = f'''
 import json
 import math
 
@@ -28,48 +40,32 @@ import llvmlite.binding as llvm
 import numpy as np
 from orbitsim._jit import jit, wide_vectors
 
-LANES = 64  # a loop of 16 this short is unrolled first and then left scalar (benchmarks/README.md, fifth pass)
-
 
 @jit
 def lanes(g, a):
     wide_vectors()
-    for lane in range(LANES):
-        x, y, z = g[lane], g[LANES + lane], g[2 * LANES + lane]
-        r2 = x * x + y * y + z * z
-        k = a / (r2 * math.sqrt(r2))
-        g[3 * LANES + lane] = k * x
-        g[4 * LANES + lane] = k * y
-        g[5 * LANES + lane] = k * z
-
+{LOOP}
 
 @jit
 def lanes_default(g, a):
-    for lane in range(LANES):
-        x, y, z = g[lane], g[LANES + lane], g[2 * LANES + lane]
-        r2 = x * x + y * y + z * z
-        k = a / (r2 * math.sqrt(r2))
-        g[3 * LANES + lane] = k * x
-        g[4 * LANES + lane] = k * y
-        g[5 * LANES + lane] = k * z
+{LOOP}
 
-
-g = np.random.default_rng(5).uniform(0.5, 2.0, 6 * LANES)
+g = np.random.default_rng(5).uniform(0.5, 2.0, 384)
 h = g.copy()
 lanes(g, 1.0 / 3.0)
 lanes_default(h, 1.0 / 3.0)
-print(json.dumps({
+print(json.dumps({{
     "same_bits": g.tobytes() == h.tobytes(),
-    "attribute": [ATTRIBUTE in f.inspect_llvm(f.signatures[0]) for f in (lanes, lanes_default)],
+    "attribute": [{ATTRIBUTE!r} in f.inspect_llvm(f.signatures[0]) for f in (lanes, lanes_default)],
     "zmm": "zmm" in lanes.inspect_asm(lanes.signatures[0]),
     "avx512f": "+avx512f" in llvm.get_host_cpu_features().flatten(),
-}))
+}}))
 '''
 
 
 def test_the_caller_gets_the_attribute_and_keeps_its_bits(tmp_path: Path) -> None:
     probe = tmp_path / "probe.py"
-    probe.write_text(f"ATTRIBUTE = {ATTRIBUTE!r}\n" + PROBE, encoding="utf-8")
+    probe.write_text(PROBE, encoding="utf-8")
     env = {**os.environ, "ORBITSIM_CACHE_DIR": str(tmp_path / "cache")}
     env.pop("NUMBA_CACHE_DIR", None)
     done = subprocess.run([sys.executable, str(probe)], capture_output=True, text=True, env=env, timeout=300)
