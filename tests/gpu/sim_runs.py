@@ -48,10 +48,10 @@ def scenario(tmp_path: Path, integrator: str = "verlet", steps: int = 20, name: 
 
 
 def test_a_gpu_run_writes_the_cpus_trace_layout_and_agrees_with_it(tmp_path: Path) -> None:
-    path = scenario(tmp_path, "leapfrog4")
+    path = scenario(tmp_path, "leapfrog4", steps=10)  # two samples after the start: each step is ~0.3 s simulated
     run("run", str(path), "-o", str(tmp_path / "cpu.h5"), "-q")
     text = run("run", str(path), "-o", str(tmp_path / "gpu.h5"), "--device", "gpu")
-    assert "small: complete, 20 of 20 steps" in text
+    assert "small: complete, 10 of 10 steps" in text
     cpu, gpu = read_trace(tmp_path / "cpu.h5"), read_trace(tmp_path / "gpu.h5")
     assert gpu.attrs["device"] == "gpu" and gpu.attrs["device_name"] == "CUDA simulator"
     assert "device" not in cpu.attrs
@@ -75,11 +75,11 @@ def datasets(path: Path) -> dict[str, tuple[tuple[int, ...], str]]:
 
 
 def test_a_gpu_run_continues_from_its_final_state_bit_for_bit(tmp_path: Path) -> None:
-    """The trace's final state (copied back from the device) continues on the device: 10 + 10 steps give
-    the bits of one 20-step GPU run (same operations, same device, deterministic sums)."""
-    short, whole = scenario(tmp_path, steps=10, name="short.yaml"), scenario(tmp_path, steps=20, name="whole.yaml")
+    """The trace's final state (copied back from the device) continues on the device: 5 + 5 steps give
+    the bits of one 10-step GPU run (same operations, same device, deterministic sums)."""
+    short, whole = scenario(tmp_path, steps=5, name="short.yaml"), scenario(tmp_path, steps=10, name="whole.yaml")
     run("run", str(short), "-o", str(tmp_path / "ext.h5"), "--device", "gpu", "-q")
-    run("run", "--from", str(tmp_path / "ext.h5"), "--steps", "10", "-q")
+    run("run", "--from", str(tmp_path / "ext.h5"), "--steps", "5", "-q")
     run("run", str(whole), "-o", str(tmp_path / "one.h5"), "--device", "gpu", "-q")
     ext, one = read_trace(tmp_path / "ext.h5"), read_trace(tmp_path / "one.h5")
     assert ext.attrs["device"] == "gpu" and ext.attrs["status"] == "complete"
