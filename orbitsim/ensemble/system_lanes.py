@@ -45,10 +45,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import prange
 
-from orbitsim._jit import jit, jit_inline, jit_llvm_inline, jit_parallel_exact, stop_requested, wide_vectors
+from orbitsim._jit import jit, jit_inline, jit_llvm_inline, stop_requested, wide_vectors
 from orbitsim.ensemble.kernels import _energy, elements_ae, finish_system, jacobi_elements_ae
+from orbitsim.ensemble.parallel import aligned_zeros, over_threads
 from orbitsim.ensemble.status import COLLIDED, COMPLETE, DIVERGED, ESCAPED
 from orbitsim.physics.coordinates import inertial_to_jacobi
 from orbitsim.physics.kepler import KEPLER_OK, fg_apply, kepler_drift, lagrange_coefficients
@@ -587,20 +587,30 @@ def _finish_group(g, grp, done, pos, vel, m, G, dt, t_start, watch, jpos, jvel, 
         steps[k] = n_done
 
 
-@jit_parallel_exact
-def run_ensemble_wh_lanes(pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_collisions, watch,
-                          jpos, jvel, ipos, iacc, weights, mu, ks, kstage, rows, status, steps, out):
+@jit
+def _run_groups(first, last, groups, e0, pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii, check_collisions,
+                watch, jpos, jvel, ipos, iacc, weights, mu, ks, kstage, rows, status, steps, out):
+    """Groups ``first .. last - 1`` of :func:`run_ensemble_wh_lanes`, one after another (one thread's range)."""
+    n = pos.shape[2]
+    for grp in range(first, last):
+        g = groups[grp]
+        _start_group(g, grp, pos, vel, m, G, weights, mu, radii, watch, rows, jpos, jvel, e0)
+        done = run_group(g, np.int64(n), G, dt, n_steps, escape_r2, check_collisions, watch)
+        _finish_group(g, grp, np.int64(done), pos, vel, m, G, dt, t_start, watch, jpos, jvel, ipos, iacc, weights,
+                      mu, ks, kstage, rows, e0, status, steps, out)
+
+
+def run_ensemble_wh_lanes(pos: np.ndarray, vel: np.ndarray, m: np.ndarray, G: float, dt: float, t_start: float,
+                          n_steps: np.int64, escape_r2: float, radii: np.ndarray, check_collisions: bool,
+                          watch: np.int64, jpos: np.ndarray, jvel: np.ndarray, ipos: np.ndarray, iacc: np.ndarray,
+                          weights: np.ndarray, mu: np.ndarray, ks: np.ndarray, kstage: np.ndarray, rows: np.ndarray,
+                          status: np.ndarray, steps: np.ndarray, out: np.ndarray) -> None:
     """:func:`orbitsim.ensemble.kernels.run_ensemble_wh` with LANES systems per group in SIMD lanes (module
-    docstring): the same arguments, the same results bit for bit; the groups in parallel (the last one padded)."""
+    docstring): the same arguments, the same results bit for bit; the groups over the threads
+    (:func:`orbitsim.ensemble.parallel.over_threads`; the last group padded)."""
     n_sys, n = pos.shape[0], pos.shape[2]
     n_groups = (n_sys + LANES - 1) // LANES
-    groups = np.zeros((n_groups, n * BLOCK_ROWS * LANES))
+    groups = aligned_zeros((n_groups, n * BLOCK_ROWS * LANES))  # rows start cache lines (parallel.py)
     e0 = np.zeros(n_sys)
-    # the helpers take np.int64 arguments: a prange index, and a literal, are typed otherwise inside a parfor
-    # than outside it, and each type would compile a helper once more
-    for grp in prange(n_groups):
-        g = groups[grp]
-        _start_group(g, np.int64(grp), pos, vel, m, G, weights, mu, radii, watch, rows, jpos, jvel, e0)
-        done = run_group(g, np.int64(n), G, dt, n_steps, escape_r2, check_collisions, watch)
-        _finish_group(g, np.int64(grp), np.int64(done), pos, vel, m, G, dt, t_start, watch, jpos, jvel, ipos, iacc,
-                      weights, mu, ks, kstage, rows, e0, status, steps, out)
+    over_threads(_run_groups, n_groups, groups, e0, pos, vel, m, G, dt, t_start, n_steps, escape_r2, radii,
+                 check_collisions, watch, jpos, jvel, ipos, iacc, weights, mu, ks, kstage, rows, status, steps, out)

@@ -38,11 +38,11 @@ The kernel takes ``G`` and ``eps2``, not a force context: it has no forces beyon
 from __future__ import annotations
 
 import numpy as np
-from numba import prange
 
-from orbitsim._jit import jit, jit_parallel_exact, stop_requested, wide_vectors
+from orbitsim._jit import jit, stop_requested, wide_vectors
 from orbitsim.chaos.megno import RESCALE_ABOVE, MegnoState, deltad_delta_body, megno_update, rescale_power_of_two
 from orbitsim.ensemble.kernels import _energy, jacobi_elements_ae, record_chaos_indicators
+from orbitsim.ensemble.parallel import aligned_zeros, over_threads
 from orbitsim.ensemble.status import COMPLETE, DIVERGED, ENERGY_ERROR
 from orbitsim.ensemble.system_lanes import (
     LANES,
@@ -283,23 +283,35 @@ def _finish_group(g, grp, done, pos, vel, dpos, dvel, m, G, dt, t_start, watch, 
         steps[k] = n_done
 
 
-@jit_parallel_exact
-def run_ensemble_variational_lanes(pos, vel, dpos, dvel, m, G, eps2, dt, t_start, n_steps, escape_r2, radii,
-                                   check_collisions, watch, weights, mu, scratch, rows, status, steps, out):
+@jit
+def _run_groups(first, last, groups, whole, e0, pos, vel, dpos, dvel, m, G, eps2, dt, t_start, n_steps, escape_r2,
+                radii, check_collisions, watch, weights, mu, scratch, rows, status, steps, out):
+    """Groups ``first .. last - 1`` of :func:`run_ensemble_variational_lanes`, one after another (one thread's
+    range)."""
+    n = pos.shape[2]
+    for grp in range(first, last):
+        g = groups[grp]
+        _start_group(g, grp, pos, vel, dpos, dvel, m, G, weights, mu, radii, watch, rows, scratch, e0)
+        done = run_tangent_group(g, np.int64(n), G, eps2, dt, t_start, n_steps, escape_r2, check_collisions, watch,
+                                 whole[grp])
+        _finish_group(g, grp, np.int64(done), pos, vel, dpos, dvel, m, G, dt, t_start, watch, rows, e0, status, steps,
+                      out)
+
+
+def run_ensemble_variational_lanes(pos: np.ndarray, vel: np.ndarray, dpos: np.ndarray, dvel: np.ndarray,
+                                   m: np.ndarray, G: float, eps2: float, dt: float, t_start: float, n_steps: np.int64,
+                                   escape_r2: float, radii: np.ndarray, check_collisions: bool, watch: np.int64,
+                                   weights: np.ndarray, mu: np.ndarray, scratch: np.ndarray, rows: np.ndarray,
+                                   status: np.ndarray, steps: np.ndarray, out: np.ndarray) -> None:
     """:func:`orbitsim.ensemble.kernels.run_ensemble_variational` without forces beyond gravity (``G``,
     ``eps2`` in place of its force context), LANES systems per group in SIMD lanes (module docstring): the same
     results bit for bit, ``dpos`` and ``dvel`` left with each system's last tangent vector as that kernel leaves
-    them; the groups in parallel (the last one padded). ``scratch`` (K, >= 2, 3, N)."""
+    them; the groups over the threads (:func:`orbitsim.ensemble.parallel.over_threads`; the last one padded).
+    ``scratch`` (K, >= 2, 3, N)."""
     n_sys, n = pos.shape[0], pos.shape[2]
     n_groups = (n_sys + LANES - 1) // LANES
-    groups = np.zeros((n_groups, n * BLOCK_ROWS * LANES))
+    groups = aligned_zeros((n_groups, n * BLOCK_ROWS * LANES))  # rows start cache lines (parallel.py)
     whole = np.zeros((n_groups, 2, 3, n))
     e0 = np.zeros(n_sys)
-    # np.int64 arguments: a prange index, and a literal, are typed otherwise inside a parfor (system_lanes)
-    for grp in prange(n_groups):
-        g = groups[grp]
-        _start_group(g, np.int64(grp), pos, vel, dpos, dvel, m, G, weights, mu, radii, watch, rows, scratch, e0)
-        done = run_tangent_group(g, np.int64(n), G, eps2, dt, t_start, n_steps, escape_r2, check_collisions, watch,
-                                 whole[grp])
-        _finish_group(g, np.int64(grp), np.int64(done), pos, vel, dpos, dvel, m, G, dt, t_start, watch, rows, e0,
-                      status, steps, out)
+    over_threads(_run_groups, n_groups, groups, whole, e0, pos, vel, dpos, dvel, m, G, eps2, dt, t_start, n_steps,
+                 escape_r2, radii, check_collisions, watch, weights, mu, scratch, rows, status, steps, out)
