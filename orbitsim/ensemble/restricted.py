@@ -26,6 +26,8 @@ system. A massive tangent vector that grows past 2^300 (a chaotic massive system
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import prange
 
@@ -64,6 +66,7 @@ from orbitsim.ensemble.massive_record import (
     record_columns,
     record_value,
 )
+from orbitsim.ensemble.parallel import aligned_zeros
 from orbitsim.ensemble.status import COMPLETE, DELTA_A, DIVERGED, ENERGY_ERROR, LYAPUNOV, MAX_E, MEGNO, SURVIVAL_TIME
 from orbitsim.physics.coordinates import inertial_to_jacobi
 
@@ -142,16 +145,30 @@ def _massive_slot(slot, mpos, mvel, mdpos, mdvel, m, force, dt, weights, mu, scr
                                              radii, check_collisions, n_steps, rec[slot])
 
 
-@jit_parallel_exact
-def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps, escape_r2, radii,
-                               check_collisions, watch, weights, mu, rows, status, steps, out):
+def run_restricted_variational(pos: np.ndarray, vel: np.ndarray, dpos: np.ndarray, dvel: np.ndarray, m: np.ndarray,
+                               force: Any, dt: float, t_start: float, n_steps: np.int64, escape_r2: float,
+                               radii: np.ndarray, check_collisions: bool, watch: np.int64, weights: np.ndarray,
+                               mu: np.ndarray, rows: np.ndarray, status: np.ndarray, steps: np.ndarray,
+                               out: np.ndarray) -> bool:
     """:func:`orbitsim.ensemble.kernels.run_ensemble_variational` for systems whose last body is massless
     and whose other bodies (and their variations) are the same in every system (module docstring).
     Same arguments and results, less its scratch; ``watch`` must be the last body. Returns False, having
     written nothing meaningful, where the shortcut gave up (the caller then runs the whole-system kernel).
     The pixels are stepped LANES at a time (:mod:`orbitsim.ensemble.lanes`), group after group, block after
     block; the massive bodies' next block is stepped beside the pixels' current one, as one more task of the
-    same ``prange`` (two record slots), so no thread waits for it."""
+    same ``prange`` (two record slots), so no thread waits for it. The groups' rows start cache lines
+    (:func:`orbitsim.ensemble.parallel.aligned_zeros`; Numba's own ``np.zeros`` aligns to 32 bytes)."""
+    n_groups = (pos.shape[0] + LANES - 1) // LANES
+    groups = aligned_zeros((n_groups, NROWS * LANES))
+    whole = aligned_zeros((n_groups, LANES, 3, 3, pos.shape[2]))  # a rescaled lane's tangent state
+    return bool(_run_restricted(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps, escape_r2, radii,
+                                check_collisions, watch, weights, mu, rows, status, steps, out, groups, whole))
+
+
+@jit_parallel_exact
+def _run_restricted(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps, escape_r2, radii, check_collisions, watch,
+                    weights, mu, rows, status, steps, out, groups, whole):
+    """:func:`run_restricted_variational`'s kernel, its groups' rows and tangent scratch given."""
     n_sys = pos.shape[0]
     n = pos.shape[2]
     q = n - 1
@@ -175,8 +192,6 @@ def run_restricted_variational(pos, vel, dpos, dvel, m, force, dt, t_start, n_st
     recorded = np.zeros(2, dtype=np.int64)
     ok = np.ones(2, dtype=np.bool_)
     n_groups = (n_sys + LANES - 1) // LANES
-    groups = np.zeros((n_groups, NROWS * LANES))
-    whole = np.zeros((n_groups, LANES, 3, 3, n))  # a rescaled lane's whole tangent state, for MEGNO and rescaling
     e0 = np.zeros(n_sys)
     jscratch = np.zeros((n_groups, 2, 3, n))
     # the helpers take np.int64 arguments: a prange index, and a literal, are typed otherwise inside a parfor
