@@ -56,45 +56,23 @@ def test_each_range_runs_once_and_the_first_on_the_calling_thread(threads: int) 
     assert first_range == [threading.current_thread().name]
 
 
-def _with_two_threads() -> int:
+@pytest.mark.parametrize("failing", [0, 1], ids=["calling thread's range", "pool range"])
+def test_an_error_in_one_range_is_raised_after_the_other_range_ends(failing: int) -> None:
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("needs two Numba threads")
+    ended = []
+
+    def task(first, last):
+        if first == failing:
+            raise ValueError(f"range {failing} failed")
+        time.sleep(0.2)
+        ended.append(int(first))
+
     before = numba.get_num_threads()
     numba.set_num_threads(2)
-    return before
-
-
-def test_an_error_in_a_pool_range_is_raised_after_the_calling_threads_range_ends() -> None:
-    ended = []
-
-    def task(first, last):
-        if first > 0:
-            raise ValueError("pool range failed")
-        time.sleep(0.2)
-        ended.append(first)
-
-    before = _with_two_threads()
     try:
-        with pytest.raises(ValueError, match="pool range failed"):
+        with pytest.raises(ValueError, match=f"range {failing} failed"):
             over_threads(task, 2)
     finally:
         numba.set_num_threads(before)
-    assert ended == [0]
-
-
-def test_an_error_in_the_calling_threads_range_waits_for_the_pool_ranges() -> None:
-    ended = []
-
-    def task(first, last):
-        if first == 0:
-            raise ValueError("first range failed")
-        time.sleep(0.2)
-        ended.append(first)
-
-    before = _with_two_threads()
-    try:
-        with pytest.raises(ValueError, match="first range failed"):
-            over_threads(task, 2)
-    finally:
-        numba.set_num_threads(before)
-    assert ended == [1]  # the pool's range had ended, not left writing after the raise
+    assert ended == [1 - failing]  # the other range had ended: none is left writing after the raise
