@@ -71,9 +71,9 @@ def over_threads(task: Callable[..., Any], n_tasks: int, *args: Any) -> None:
     """``task(first, last, *args)`` for the ranges of :func:`thread_ranges` over ``numba.get_num_threads()``
     threads: the calling thread runs the first range, pool threads the others; returns when all are done
     (an exception of any range is raised here, after every range has ended)."""
-    ranges = thread_ranges(n_tasks, numba.get_num_threads())
     if n_tasks <= 0:
         return
+    ranges = thread_ranges(n_tasks, numba.get_num_threads())
     if len(ranges) == 1:
         task(np.int64(0), np.int64(n_tasks), *args)
         return
