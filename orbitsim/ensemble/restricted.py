@@ -191,7 +191,7 @@ def _run_restricted(pos, vel, dpos, dvel, m, force, dt, t_start, n_steps, escape
     block_vel = np.zeros((2, 3, q))
     recorded = np.zeros(2, dtype=np.int64)
     ok = np.ones(2, dtype=np.bool_)
-    n_groups = (n_sys + LANES - 1) // LANES
+    n_groups = groups.shape[0]  # LANES pixels a group, the last one padded (run_restricted_variational)
     e0 = np.zeros(n_sys)
     jscratch = np.zeros((n_groups, 2, 3, n))
     # the helpers take np.int64 arguments: a prange index, and a literal, are typed otherwise inside a parfor
