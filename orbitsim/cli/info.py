@@ -289,6 +289,9 @@ def _map_info(path: str) -> None:
         click.echo(f"    {name}: {shown}")
     click.echo(f"  time: {data['wall_time_s']:.3g} s wall for {data['pixels_computed']} pixels computed in this "
                f"run; kernel {data['kernel_time_s']:.3g} s, {data['pixels_per_s']:.4g} pixels/s")
+    if "setup_time_s" in data:  # maps written before it was recorded lack it
+        click.echo(f"  set-up before the pixels: {data['setup_time_s']:.3g} s (Numba's start and the kernels "
+                   f"from its cache; {data['compile_time_s']:.3g} s compiling, which a first run does)")
     if data.get("device") == "gpu":
         click.echo(f"  device: gpu ({data.get('device_name')})")
     click.echo(f"  orbitsim {data.get('provenance_orbitsim_version')}, {data.get('provenance_numba_threads')} "

@@ -172,7 +172,8 @@ def command(scenario: str, x_spec: str, y_spec: str | None, x_log: bool, y_log: 
             _hint_shared_massive(plan)
         progress = None if quiet else (lambda line: click.echo(f"\r{line}   ", err=True, nl=False))
         data = run_map(plan, directory, max_energy_error=max_energy_error, indicator=indicator, attrs=attrs,
-                       scheduler=scheduler, progress=progress)
+                       scheduler=scheduler, progress=progress,
+                       on_compile=None if quiet else (lambda line: click.echo(f"orbitsim: {line}", err=True)))
     if not quiet:
         click.echo("", err=True)
     counts = ", ".join(f"{int(np.sum(data['status'] == i))} {name}" for i, name in enumerate(data["status_names"]))

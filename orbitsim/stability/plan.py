@@ -24,7 +24,7 @@ import numpy as np
 from orbitsim.stability.axes import Axis, MapSpecError
 
 __all__ = ["INDICATORS", "ChunkResult", "MapPlan", "PixelStates", "chunk_states", "fingerprint", "make_plan",
-           "run_chunk"]
+           "ready_kernels", "run_chunk"]
 
 #: The indicators a map computes, all in one pass (the ``--indicator`` names).
 INDICATORS = ("megno", "lyapunov_time", "survival_time", "max_e", "delta_a", "energy_error")
@@ -159,9 +159,7 @@ def run_chunk(plan: MapPlan, index: int, states: PixelStates | None = None) -> C
     chunk's start ``states`` (default :func:`chunk_states`)."""
     import time  # noqa: PLC0415 - lazy: kept beside its one use
 
-    from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: as above
-    from orbitsim.ensemble import run_ensemble  # noqa: PLC0415 - lazy: loads numba
-    from orbitsim.ensemble.status import (  # noqa: PLC0415
+    from orbitsim.ensemble.status import (  # noqa: PLC0415 - lazy: loads numba
         DELTA_A,
         ENERGY_ERROR,
         LYAPUNOV,
@@ -171,17 +169,8 @@ def run_chunk(plan: MapPlan, index: int, states: PixelStates | None = None) -> C
     )
 
     m, x, v = chunk_states(plan, index) if states is None else states
-    radii = None if plan.radii is None else np.tile(plan.radii, (m.shape[0], 1))
-    dpos, dvel = random_initial_variation(m.shape[1], plan.seed)
-    variation = (np.tile(dpos, (m.shape[0], 1, 1)), np.tile(dvel, (m.shape[0], 1, 1)))
-    run = functools.partial(run_ensemble, integrator=plan.integrator)
-    if plan.device == "gpu":  # make_plan let only the GPU's schemes with variational equations through
-        from orbitsim.gpu.ensemble import run_ensemble_gpu  # noqa: PLC0415 - lazy: loads numba-cuda
-
-        run = functools.partial(run_ensemble_gpu, scheme=plan.integrator)
     started = time.perf_counter()
-    result = run(m, x, v, G=plan.G, dt=plan.dt, n_steps=plan.n_steps, t_start=plan.t_start,
-                 escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation)
+    result = _run_pixels(plan, m, x, v, plan.n_steps)
     seconds = time.perf_counter() - started
     cols = result.indicators
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -190,6 +179,33 @@ def run_chunk(plan: MapPlan, index: int, states: PixelStates | None = None) -> C
     table = np.column_stack([cols[:, MEGNO], lyapunov_time, cols[:, SURVIVAL_TIME], cols[:, MAX_E],
                              cols[:, DELTA_A], cols[:, ENERGY_ERROR]])
     return ChunkResult(index, result.status, cols[:, SURVIVAL_TIME].copy(), table, seconds)
+
+
+def ready_kernels(plan: MapPlan) -> None:
+    """Make the kernels this map's chunks call ready in this process: loaded from Numba's cache, or compiled
+    on a first run. Chunk 0's pixels run for no step, which takes the chunks' own path through
+    :func:`~orbitsim.ensemble.run_ensemble` (the same kernel choice, the same argument types) and changes
+    nothing: the plan's start states are copied, never written."""
+    m, x, v = chunk_states(plan, 0)
+    _run_pixels(plan, m, x, v, 0)
+
+
+def _run_pixels(plan: MapPlan, m: np.ndarray, x: np.ndarray, v: np.ndarray, n_steps: int) -> Any:
+    """``n_steps`` steps of the pixels with start states ``m``, ``x``, ``v`` (and the map's initial variation)
+    in one ensemble call on the plan's device; its :class:`~orbitsim.ensemble.run.EnsembleResult`."""
+    from orbitsim.chaos.megno import random_initial_variation  # noqa: PLC0415 - lazy: loads numba
+    from orbitsim.ensemble import run_ensemble  # noqa: PLC0415 - lazy: as above
+
+    radii = None if plan.radii is None else np.tile(plan.radii, (m.shape[0], 1))
+    dpos, dvel = random_initial_variation(m.shape[1], plan.seed)
+    variation = (np.tile(dpos, (m.shape[0], 1, 1)), np.tile(dvel, (m.shape[0], 1, 1)))
+    run = functools.partial(run_ensemble, integrator=plan.integrator)
+    if plan.device == "gpu":  # make_plan let only the GPU's schemes with variational equations through
+        from orbitsim.gpu.ensemble import run_ensemble_gpu  # noqa: PLC0415 - lazy: loads numba-cuda
+
+        run = functools.partial(run_ensemble_gpu, scheme=plan.integrator)
+    return run(m, x, v, G=plan.G, dt=plan.dt, n_steps=n_steps, t_start=plan.t_start,
+               escape_distance=plan.escape_distance, radii=radii, watch=plan.watch, variation=variation)
 
 
 def fingerprint(plan: MapPlan) -> str:
