@@ -33,7 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import h5py
 import numpy as np
@@ -85,11 +85,21 @@ def rebound_map(n: int, years: float) -> tuple[float, np.ndarray]:
     return time.perf_counter() - started, np.array(megno).reshape(n, n)
 
 
-def orbitsim_map(n: int, years: float, out: Path, indicator: str, warm: bool = True) -> tuple[float, float, float]:
-    """Wall time of the whole ``orbitsim map`` command (warm cache: a first run fills it unless ``warm`` is
-    False), its map's computation (map.h5's ``wall_time_s``: every chunk run and stored, what REBOUND's
-    ``pool.map`` call does, without the interpreter's start-up, the plan, map.h5 and the figure) and its
-    kernels' time."""
+class MapTimes(NamedTuple):
+    """The times of one ``orbitsim map`` command (:func:`orbitsim_map`), in seconds."""
+
+    whole: float  #: the whole command: the interpreter's start-up, imports, plan, set-up, pixels, map.h5, figure
+    computation: float  #: map.h5's ``wall_time_s``: every chunk run and stored (what REBOUND's ``pool.map`` does)
+    kernels: float  #: map.h5's ``kernel_time_s``: the ensemble calls alone
+    setup: float  #: map.h5's ``setup_time_s``: Numba's start and the kernels' load, before the computation
+
+
+def orbitsim_map(n: int, years: float, out: Path, indicator: str, warm: bool = True) -> MapTimes:
+    """The times of the whole ``orbitsim map`` command (warm cache: a first run fills it unless ``warm`` is
+    False): the whole, its map's computation (map.h5's ``wall_time_s``: every chunk run and stored, what
+    REBOUND's ``pool.map`` call does, without the interpreter's start-up, the plan, map.h5 and the figure, and
+    without readying the kernels: Numba's start and the kernels' load from its cache, the counterpart of
+    ``import rebound`` before REBOUND's clock, reported as ``setup``) and its kernels' time."""
     command = [sys.executable, "-m", "orbitsim", "map", "jupiter_saturn", "--x", f"planet.a=5.8:9.0:{n}",
                "--y", f"planet.e=0:0.38:{n}", "--t-end", repr(years * YEAR), "--indicator", indicator, "--quiet"]
     out.mkdir(parents=True, exist_ok=True)
@@ -99,7 +109,8 @@ def orbitsim_map(n: int, years: float, out: Path, indicator: str, warm: bool = T
     subprocess.run([*command, "-o", str(out / "timed")], check=True, capture_output=True)
     wall = time.perf_counter() - started
     with h5py.File(out / "timed" / "map.h5", "r") as f:
-        return wall, float(f.attrs["wall_time_s"]), float(f.attrs["kernel_time_s"])
+        return MapTimes(wall, float(f.attrs["wall_time_s"]), float(f.attrs["kernel_time_s"]),
+                        float(f.attrs["setup_time_s"]))
 
 
 def _giants(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -319,20 +330,20 @@ def run_ensemble_probe(group: Any) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp)
         rebound_s, _ = rebound_map(p["map_n"], p["years"])
-        orbitsim_s, compute_s, kernel_s = orbitsim_map(p["map_n"], p["years"], out, p["indicator"])
+        small = orbitsim_map(p["map_n"], p["years"], out, p["indicator"])
         large = p.get("large_map_n", 0)
         # the large map alone: REBOUND's time for it is the small map's per pixel times its pixels
-        large_s, _, large_kernel_s = (orbitsim_map(large, p["years"], out / "large", p["indicator"], warm=False)
-                                      if large else (0.0, 0.0, 0.0))
+        large_times = (orbitsim_map(large, p["years"], out / "large", p["indicator"], warm=False)
+                       if large else MapTimes(0.0, 0.0, 0.0, 0.0))
     side_by_side = side_by_side_step_ns(p["k"], p["steps"], rounds=2)
     ns = best_step_ns(side_by_side)
     variational = variational_pixel_steps(p["k"], p["steps"])
     variational_lanes = variational_lanes_step_ns(p["k"], p["steps"])
     return {"map_n": p["map_n"], "years": p["years"], "indicator": p["indicator"], "rebound_map_s": rebound_s,
-            "orbitsim_map_s": orbitsim_s, "orbitsim_compute_s": compute_s,
-            "orbitsim_kernel_s": kernel_s, "k": p["k"], "steps": p["steps"],
+            "orbitsim_map_s": small.whole, "orbitsim_compute_s": small.computation,
+            "orbitsim_kernel_s": small.kernels, "orbitsim_setup_s": small.setup, "k": p["k"], "steps": p["steps"],
             "ensemble_ns": ns["ensemble"], "single_ns": ns["single"], "rebound_ns": ns["rebound"],
-            "large_map_n": large, "large_map_s": large_s, "large_kernel_s": large_kernel_s,
+            "large_map_n": large, "large_map_s": large_times.whole, "large_kernel_s": large_times.kernels,
             "large_rebound_estimate_s": rebound_s * (large / p["map_n"]) ** 2,
             "variational_pixel_steps_per_s": variational, "step_ns_side_by_side": side_by_side,
             "variational_lanes_step_ns": variational_lanes}

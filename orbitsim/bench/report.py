@@ -160,7 +160,9 @@ def _probes(doc: dict[str, Any]) -> list[str]:
             out.append(f"- {p['map_n']} x {p['map_n']} Jupiter-Saturn map, {p['years']:g} yr: REBOUND WHFast + MEGNO "
                        f"on Pool(2) {_time(p['rebound_map_s'])}; orbitsim map ({p['indicator']}) "
                        f"{_time(p['orbitsim_map_s'])} for the whole command, {_time(p['orbitsim_compute_s'])} for the "
-                       f"map's computation (kernels {_time(p['orbitsim_kernel_s'])}); REBOUND / orbitsim = "
+                       f"map's computation (kernels {_time(p['orbitsim_kernel_s'])}"
+                       + (f"; readying the kernels before it {_time(p['orbitsim_setup_s'])}"
+                          if "orbitsim_setup_s" in p else "") + "); REBOUND / orbitsim = "
                        f"{p['rebound_map_s'] / p['orbitsim_compute_s']:.1f} (computation; target >= 10), "
                        f"{p['rebound_map_s'] / p['orbitsim_map_s']:.2f} (whole command)")
             if p.get("large_map_n"):

@@ -51,6 +51,11 @@ TRACE_RATIO = 1.0
 #: The systems the two TRACE targets read (``system`` of a ``trace`` group).
 TRACE_ENCOUNTERS_SYSTEM = "many_encounters"
 TRACE_DISC_SYSTEM = "planetesimals"
+#: The 20 x 20 Jupiter-Saturn map (1e4 yr, MEGNO): REBOUND WHFast + MEGNO on Pool(2) over orbitsim's
+#: computation (map.h5's ``wall_time_s``; both codes' libraries loaded before their clocks), at least this.
+MAP_RATIO = 10.0
+#: The 200 x 200 map of the same system, the whole ``orbitsim map`` command, at most this (s).
+MAP_LARGE_S = 60.0
 #: RSS growth allowed from the 10-30% of a long trace-writing run to its last 20% (medians of
 #: the readings, :func:`orbitsim.bench.probes.rss_growth`), as a fraction of the settled RSS.
 TRACE_GROWTH = 0.05
@@ -300,6 +305,31 @@ def _memory_trace(doc: Doc) -> dict[str, Any]:
                 f"peak {trace['peak_rss_mb']:.0f} MB)", margin, p["group"])
 
 
+def _map_ratio(doc: Doc) -> dict[str, Any]:
+    p = _probe(doc, "ensemble")
+    label = "20 x 20 Jupiter-Saturn MEGNO map vs REBOUND WHFast + MEGNO on Pool(2)"
+    required = f">= {MAP_RATIO:g}x faster (its computation)"
+    if p is None:
+        return _row("map_ratio", label, required, None, "not measured", None)
+    ratio = p["rebound_map_s"] / p["orbitsim_compute_s"]
+    setup = f", {p['orbitsim_setup_s']:.2f} s readying the kernels before it" if "orbitsim_setup_s" in p else ""
+    text = (f"{ratio:.1f}x ({p['map_n']} x {p['map_n']}: REBOUND {p['rebound_map_s']:.2f} s, orbitsim "
+            f"{p['orbitsim_compute_s']:.2f} s{setup}; whole command {p['orbitsim_map_s']:.2f} s)")
+    return _row("map_ratio", label, required, ratio, text, ratio / MAP_RATIO, p["group"])
+
+
+def _map_large(doc: Doc) -> dict[str, Any]:
+    p = _probe(doc, "ensemble")
+    label = "200 x 200 Jupiter-Saturn MEGNO map, one file"
+    required = f"<= {MAP_LARGE_S:g} s (whole command)"
+    if p is None or not p.get("large_map_n"):
+        return _row("map_large", label, required, None, "not measured", None)
+    seconds = p["large_map_s"]
+    text = (f"{seconds:.1f} s ({p['large_map_n']} x {p['large_map_n']}; REBOUND's estimate "
+            f"{p['large_rebound_estimate_s']:.0f} s)")
+    return _row("map_large", label, required, seconds, text, MAP_LARGE_S / seconds, p["group"])
+
+
 #: Every target, in the order of the issue.
 TARGETS: tuple[Callable[[Doc], dict[str, Any]], ...] = (
     _throughput, _speedup, _small_n("semi_implicit_euler"), _small_n("verlet"), _startup_warm,
@@ -308,6 +338,7 @@ TARGETS: tuple[Callable[[Doc], dict[str, Any]], ...] = (
            TRACE_ENCOUNTERS_SYSTEM, strict=False),
     _trace("trace_disc", "trace on a disc of ~100 planetesimals with encounters vs REBOUND TRACE", TRACE_DISC_SYSTEM,
            strict=True),
+    _map_ratio, _map_large,
 )
 
 

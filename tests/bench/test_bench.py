@@ -293,3 +293,22 @@ def test_the_ensemble_report_shows_the_variational_lanes_beside_the_scalar_kerne
     line = next(row for row in text.splitlines() if "with the variational equations and MEGNO (wisdom_holman" in row)
     assert line.endswith("best of 2 rounds, K = 4: 16 lanes 330 on 1 thread, 170 on 2; scalar kernel 1600 on 1 "
                          "thread, 900 on 2")
+
+
+def test_the_map_targets_read_the_ensemble_probe_and_say_when_it_is_missing():
+    from orbitsim.bench.targets import evaluate_targets
+
+    probe = {"group": "ensemble", "kind": "ensemble", "map_n": 20, "rebound_map_s": 5.5, "orbitsim_map_s": 1.6,
+             "orbitsim_compute_s": 0.5, "orbitsim_setup_s": 0.2, "large_map_n": 200, "large_map_s": 48.0,
+             "large_rebound_estimate_s": 550.0}
+    rows = {row["key"]: row for row in evaluate_targets({"probes": [probe]})}
+    assert rows["map_ratio"]["met"] and rows["map_ratio"]["measured"] == pytest.approx(11.0)  # 5.5 / 0.5
+    assert "0.20 s readying the kernels" in rows["map_ratio"]["measured_text"]
+    assert rows["map_large"]["met"] and rows["map_large"]["margin"] == pytest.approx(1.25)  # 60 / 48
+    slow = dict(probe, orbitsim_compute_s=0.6, large_map_s=75.0)
+    rows = {row["key"]: row for row in evaluate_targets({"probes": [slow]})}
+    assert rows["map_ratio"]["met"] is False and rows["map_large"]["met"] is False
+    rows = {row["key"]: row for row in evaluate_targets({"probes": [dict(probe, large_map_n=0)]})}
+    assert rows["map_large"]["met"] is None and rows["map_large"]["measured_text"] == "not measured"
+    rows = {row["key"]: row for row in evaluate_targets({"probes": []})}
+    assert rows["map_ratio"]["met"] is None and rows["map_large"]["met"] is None
