@@ -298,7 +298,8 @@ def test_the_ensemble_report_shows_the_variational_lanes_beside_the_scalar_kerne
 def test_the_map_targets_read_the_ensemble_probe_and_say_when_it_is_missing():
     from orbitsim.bench.targets import evaluate_targets
 
-    probe = {"group": "ensemble", "kind": "ensemble", "map_n": 20, "rebound_map_s": 5.5, "orbitsim_map_s": 1.6,
+    probe = {"group": "ensemble", "kind": "ensemble", "map_n": 20, "years": 1e4, "rebound_map_s": 5.5,
+             "orbitsim_map_s": 1.6,
              "orbitsim_compute_s": 0.5, "orbitsim_setup_s": 0.2, "large_map_n": 200, "large_map_s": 48.0,
              "large_rebound_estimate_s": 550.0}
     rows = {row["key"]: row for row in evaluate_targets({"probes": [probe]})}
@@ -310,5 +311,7 @@ def test_the_map_targets_read_the_ensemble_probe_and_say_when_it_is_missing():
     assert rows["map_ratio"]["met"] is False and rows["map_large"]["met"] is False
     rows = {row["key"]: row for row in evaluate_targets({"probes": [dict(probe, large_map_n=0)]})}
     assert rows["map_large"]["met"] is None and rows["map_large"]["measured_text"] == "not measured"
+    rows = {row["key"]: row for row in evaluate_targets({"probes": [dict(probe, map_n=8, years=1e3)]})}
+    assert rows["map_ratio"]["met"] is None and rows["map_ratio"]["measured_text"].endswith("not judged")  # --quick
     rows = {row["key"]: row for row in evaluate_targets({"probes": []})}
     assert rows["map_ratio"]["met"] is None and rows["map_large"]["met"] is None
