@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from orbitsim._jit import CompileWatch, watch_compiles
 from orbitsim.stability.plan import (
     INDICATORS,
     ChunkResult,
@@ -69,6 +68,9 @@ def run_map(plan: MapPlan, directory: Path, *, max_energy_error: float, indicato
     done = parts.done()
     todo = [i for i in range(plan.n_chunks) if i not in done]
     results: dict[str, ChunkResult] = {}
+    # lazy: loads numba, which read_map's callers (orbitsim info, orbitsim plot) do not need
+    from orbitsim._jit import CompileWatch, watch_compiles  # noqa: PLC0415
+
     note = f"compiling the map's kernels for {plan.integrator} (first run only)"
     compiles = CompileWatch(None if on_compile is None else lambda: on_compile(note))
     with watch_compiles(compiles):
