@@ -541,3 +541,16 @@ def test_a_map_whose_kernels_are_ready_says_nothing_and_a_dask_map_readies_none_
     assert readied == [] and dask["setup_time_s"] < 0.1  # 0.1 s: nothing runs in its set-up but two clock reads
     for name in ("status", "stop_time"):
         assert np.array_equal(dask[name], data[name])
+
+
+def test_info_on_a_map_imports_no_numba(scenario: Path, tmp_path: Path) -> None:
+    # orbitsim info reads map.h5 only: neither it nor the map driver it reads with may load numba
+    out = tmp_path / "m"
+    assert _map([str(scenario), *AXES, "-o", str(out)])[0] == 0
+    code = (f"import sys\nfrom click.testing import CliRunner\nfrom orbitsim.cli.main import cli\n"
+            f"result = CliRunner().invoke(cli, ['info', {str(out / 'map.h5')!r}])\n"
+            f"assert result.exit_code == 0 and 'set-up before the pixels' in result.output, result.output\n"
+            f"heavy = sorted(m for m in ('numba', 'matplotlib', 'dask', 'distributed') if m in sys.modules)\n"
+            f"assert not heavy, heavy\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
