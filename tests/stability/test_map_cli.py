@@ -57,6 +57,17 @@ def _grids(path: Path) -> dict[str, np.ndarray]:
         return out
 
 
+def _plan(scenario: Path, chunk: int):
+    """The test map's plan (3 x 2 pixels over the planet's a and e, to t = 40) in chunks of ``chunk``."""
+    from orbitsim.scenario.yamlio import parse_yaml
+    from orbitsim.stability.axes import parse_axis
+    from orbitsim.stability.plan import make_plan
+
+    doc, _ = parse_yaml(scenario.read_text(encoding="utf-8"), str(scenario))
+    axes = [parse_axis("--x", "planet.a=7.0:8.0:3", doc), parse_axis("--y", "planet.e=0:0.3:2", doc)]
+    return make_plan(load_scenario(str(scenario)), doc, axes, 40.0, None, chunk)
+
+
 def test_cli_lists_the_indicators_the_plan_computes():
     assert INDICATOR_CHOICES == INDICATORS
 
@@ -359,13 +370,9 @@ def test_the_plans_start_states_are_the_ones_each_chunk_would_build(scenario: Pa
     # make_plan builds every pixel's start state once (its validation) and the chunks slice them; a Dask
     # task's plan travels without them and builds its own chunk: the same bits either way, the last,
     # partial chunk included (6 pixels in chunks of 4).
-    from orbitsim.scenario.yamlio import parse_yaml
-    from orbitsim.stability.axes import parse_axis
-    from orbitsim.stability.plan import chunk_states, fingerprint, make_plan, without_states
+    from orbitsim.stability.plan import chunk_states, fingerprint, without_states
 
-    doc, _ = parse_yaml(scenario.read_text(encoding="utf-8"), str(scenario))
-    axes = [parse_axis("--x", "planet.a=7.0:8.0:3", doc), parse_axis("--y", "planet.e=0:0.3:2", doc)]
-    plan = make_plan(load_scenario(str(scenario)), doc, axes, 40.0, None, 4)
+    plan = _plan(scenario, 4)
     light = without_states(plan)
     assert plan.states is not None and light.states is None and plan.states.masses.shape == (6, 5)
     assert fingerprint(light) == fingerprint(plan)  # derived data: resuming on Dask finds the same map
@@ -437,18 +444,7 @@ def test_a_pixel_reads_only_the_varied_bodies_with_the_bits_of_a_whole_read(scen
         assert np.array_equal(plan.states.masses[pixel], m)
         assert np.array_equal(plan.states.positions[pixel], x.T)
         assert np.array_equal(plan.states.velocities[pixel], v.T)
-    assert len({plan.states.positions[p][0, axes[0].index] for p in range(3)}) == 3  # the axis did vary the body
-
-
-def _plan(scenario: Path, chunk: int):
-    """The test map's plan (3 x 2 pixels over the planet's a and e, to t = 40) in chunks of ``chunk``."""
-    from orbitsim.scenario.yamlio import parse_yaml
-    from orbitsim.stability.axes import parse_axis
-    from orbitsim.stability.plan import make_plan
-
-    doc, _ = parse_yaml(scenario.read_text(encoding="utf-8"), str(scenario))
-    axes = [parse_axis("--x", "planet.a=7.0:8.0:3", doc), parse_axis("--y", "planet.e=0:0.3:2", doc)]
-    return make_plan(load_scenario(str(scenario)), doc, axes, 40.0, None, chunk)
+    assert len({plan.states.positions[p][0, plan.axes[0].index] for p in range(3)}) == 3  # the axis did vary the body
 
 
 def test_ready_kernels_takes_the_chunks_path_so_a_chunk_then_compiles_nothing(scenario: Path):
@@ -489,12 +485,12 @@ def test_a_first_map_says_once_that_it_compiles_and_keeps_compiling_out_of_the_p
         with event.trigger_event("numba:compile", data=no_function):
             time.sleep(seconds)
 
-    setup_compiles = []
+    readied = []
 
     def ready_and_compile(p):
         ready_kernels(p)
         compiling(0.1)
-        setup_compiles.append(0.1)
+        readied.append(p)
 
     spans = []
 
@@ -512,7 +508,7 @@ def test_a_first_map_says_once_that_it_compiles_and_keeps_compiling_out_of_the_p
     notes = []
     data = driver.run_map(plan, tmp_path, max_energy_error=1e-6, indicator="max_e", attrs={}, on_compile=notes.append)
     assert notes == ["compiling the map's kernels for wisdom_holman (first run only)"]
-    assert len(spans) == 3 and setup_compiles
+    assert len(spans) == 3 and len(readied) == 1 and readied[0] is plan
     assert data["compile_time_s"] >= 0.4  # both compilations counted
     assert data["setup_time_s"] >= 0.1
     # without the mid-map compilation the pixels' time is less than the chunks' spans (0.1 s: the parts' writes)
